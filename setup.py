@@ -1,0 +1,36 @@
+"""ament_python packaging for geodesic_planner (also a plain pip-installable library)."""
+from setuptools import find_packages, setup
+
+PACKAGE = 'geodesic_planner'
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*', 'benchmarks']),
+    package_data={PACKAGE: ['py.typed', 'data/*.urdf']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
+        ('share/' + PACKAGE, ['package.xml']),
+    ],
+    python_requires='>=3.10',
+    install_requires=['numpy>=1.24', 'scipy>=1.10', 'pyyaml>=6'],
+    extras_require={
+        'plot': ['matplotlib>=3.6'],
+        'bag': ['rosbags>=0.11'],
+    },
+    zip_safe=True,
+    maintainer='geodesic_planner developers',
+    maintainer_email='dev@geodesic-planner.invalid',
+    description='Geodesic trajectory planning for robot arms (Chen, Li & Tang 2016).',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'geodesic-plan = geodesic_planner.cli:plan_main',
+            'geodesic-compare = geodesic_planner.cli:compare_main',
+            'geodesic-bag = geodesic_planner.bag_cli:main',
+            'geodesic_planner_node = geodesic_planner.ros.planner_node:main',
+            'trajectory_processor_node = geodesic_planner.ros.processor_node:main',
+        ],
+    },
+)
