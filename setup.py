@@ -27,7 +27,7 @@ setup(
     entry_points={
         'console_scripts': [
             'geodesic-plan = geodesic_planner.cli:plan_main',
-            'geodesic-compare = geodesic_planner.cli:compare_main',
+            'geodesic-compare = geodesic_planner.compare:main',
             'geodesic-bag = geodesic_planner.bag_cli:main',
             'geodesic_planner_node = geodesic_planner.ros.planner_node:main',
             'trajectory_processor_node = geodesic_planner.ros.processor_node:main',
