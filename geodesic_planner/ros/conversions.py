@@ -1,11 +1,26 @@
-"""Conversions between ROS messages and numpy arrays (no maths beyond unit handling)."""
+"""Conversions between ROS messages and numpy arrays (no maths beyond unit handling).
+
+Messages <-> arrays for the planner node: JointTrajectory, Pose/PoseStamped <-> 4x4 transforms,
+nav_msgs/Path of tool poses, a MarkerArray for RViz, and JointState -> joint vector in robot order.
+Invalid input raises :class:`geodesic_planner.errors.RequestError` with a message naming the cause.
+"""
 from __future__ import annotations
 
+import array
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from builtin_interfaces.msg import Duration
+from builtin_interfaces.msg import Duration, Time
+from geometry_msgs.msg import Point, Pose, PoseStamped
+from nav_msgs.msg import Path
+from sensor_msgs.msg import JointState
+from std_msgs.msg import ColorRGBA, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from visualization_msgs.msg import Marker, MarkerArray
+
+from ..errors import RequestError
+from ..transforms import make_transform, matrix_to_quat, pose_to_transform, quat_to_matrix
 
 
 @dataclass(frozen=True)
@@ -17,6 +32,11 @@ class TrajectoryArrays:
     positions: np.ndarray
     velocities: np.ndarray | None
     accelerations: np.ndarray | None
+
+
+def _darray(row: np.ndarray) -> array.array:
+    """array.array('d') of a 1-D float array (the fast path of the message setters)."""
+    return array.array('d', np.ascontiguousarray(row, dtype=np.float64).tobytes())
 
 
 def seconds_to_duration(t: float) -> Duration:
@@ -53,13 +73,14 @@ def arrays_to_joint_trajectory(
     vel = None if velocities is None else np.asarray(velocities, dtype=float)
     acc = None if accelerations is None else np.asarray(accelerations, dtype=float)
     points = []
+    # array.array('d') rows skip the generated setters' per-element checks (much faster).
     for i, ti in enumerate(np.asarray(t, dtype=float)):
         pt = JointTrajectoryPoint()
-        pt.positions = pos[i].tolist()
+        pt.positions = _darray(pos[i])
         if vel is not None:
-            pt.velocities = vel[i].tolist()
+            pt.velocities = _darray(vel[i])
         if acc is not None:
-            pt.accelerations = acc[i].tolist()
+            pt.accelerations = _darray(acc[i])
         pt.time_from_start = seconds_to_duration(ti)
         points.append(pt)
     msg.points = points
@@ -113,3 +134,206 @@ def validate_joint_trajectory(msg: JointTrajectory) -> list[str]:
             problems.append(f'point {i}: time_from_start {ti:.9f} s not after {last:.9f} s')
         last = ti
     return problems
+
+
+# --------------------------------------------------------------------------- poses
+
+
+def pose_to_matrix(pose: Pose, what: str = 'pose') -> np.ndarray:
+    """4x4 transform of a geometry_msgs/Pose, validated.
+
+    The quaternion is normalised when its norm is within 1e-3 of 1
+    (:func:`geodesic_planner.transforms.check_quaternion`).
+
+    Args:
+        pose: position in m, orientation quaternion (x, y, z, w).
+        what: name used in error messages.
+    Returns:
+        Transform, shape (4, 4).
+    Raises:
+        RequestError: NaN/inf, zero or unnormalised quaternion.
+    """
+    p, o = pose.position, pose.orientation
+    return pose_to_transform([p.x, p.y, p.z], [o.x, o.y, o.z, o.w], what)
+
+
+def matrix_to_pose(T: np.ndarray) -> Pose:
+    """geometry_msgs/Pose of a 4x4 transform (position in m, unit quaternion with w >= 0)."""
+    T = np.asarray(T, dtype=float)
+    q = matrix_to_quat(T[:3, :3])
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in T[:3, 3])
+    pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (
+        float(v) for v in q)
+    return pose
+
+
+def check_frame(frame_id: str, base_frame: str, what: str = 'pose') -> None:
+    """Accept an empty frame_id (meaning the base frame) or exactly ``base_frame``.
+
+    Raises:
+        RequestError: any other frame (no TF lookup is done).
+    """
+    if frame_id not in ('', base_frame):
+        raise RequestError(
+            f"{what}: frame_id '{frame_id}' is not the base frame '{base_frame}' "
+            f"(poses must be given in '{base_frame}' or with an empty frame_id)")
+
+
+def pose_stamped_to_matrix(msg: PoseStamped, base_frame: str, what: str = 'pose') -> np.ndarray:
+    """4x4 transform of a PoseStamped expressed in ``base_frame`` (empty frame_id = base frame).
+
+    Returns:
+        Transform base -> pose, shape (4, 4).
+    Raises:
+        RequestError: other frame, NaN/inf, invalid quaternion.
+    """
+    check_frame(msg.header.frame_id, base_frame, what)
+    return pose_to_matrix(msg.pose, what)
+
+
+def is_current_state_pose(msg: PoseStamped) -> bool:
+    """True for the "start from the current joint state" marker: empty frame_id, all-zero quaternion."""
+    o = msg.pose.orientation
+    return msg.header.frame_id == '' and o.x == 0.0 and o.y == 0.0 and o.z == 0.0 and o.w == 0.0
+
+
+def matrix_to_pose_stamped(T: np.ndarray, frame_id: str, stamp: Time | None = None) -> PoseStamped:
+    """PoseStamped of a 4x4 transform in ``frame_id`` (stamp zero unless given)."""
+    msg = PoseStamped()
+    msg.header = Header(frame_id=frame_id, stamp=stamp if stamp is not None else Time())
+    msg.pose = matrix_to_pose(T)
+    return msg
+
+
+def poses_to_path(Ts: np.ndarray, frame_id: str, stamp: Time | None = None) -> Path:
+    """nav_msgs/Path of transforms, shape (N, 4, 4), all in ``frame_id`` with the same stamp."""
+    Ts = np.asarray(Ts, dtype=float).reshape(-1, 4, 4)
+    header = Header(frame_id=frame_id, stamp=stamp if stamp is not None else Time())
+    quats = matrix_to_quat(Ts[:, :3, :3]) if len(Ts) else np.zeros((0, 4))
+    poses = []
+    for T, q in zip(Ts, quats):
+        ps = PoseStamped()
+        ps.header = header
+        ps.pose.position.x, ps.pose.position.y, ps.pose.position.z = (float(v) for v in T[:3, 3])
+        ps.pose.orientation.x, ps.pose.orientation.y, ps.pose.orientation.z, ps.pose.orientation.w = (
+            float(v) for v in q)
+        poses.append(ps)
+    return Path(header=header, poses=poses)
+
+
+def path_to_matrices(msg: Path) -> np.ndarray:
+    """Transforms of a nav_msgs/Path, shape (N, 4, 4) (quaternions are normalised, not validated)."""
+    out = np.zeros((len(msg.poses), 4, 4))
+    for i, ps in enumerate(msg.poses):
+        p, o = ps.pose.position, ps.pose.orientation
+        q = np.array([o.x, o.y, o.z, o.w], dtype=float)
+        out[i] = make_transform([p.x, p.y, p.z], quat_to_matrix(q / np.linalg.norm(q)))
+    return out
+
+
+# --------------------------------------------------------------------------- markers
+
+_AXIS_COLORS = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))  # x red, y green, z blue
+
+
+def _point(v: np.ndarray) -> Point:
+    return Point(x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def path_markers(
+    Ts: np.ndarray,
+    frame_id: str,
+    *,
+    ns: str = 'geodesic_planner',
+    line_width: float = 0.01,
+    axis_length: float = 0.1,
+    stamp: Time | None = None,
+) -> MarkerArray:
+    """MarkerArray for RViz: DELETEALL, the tool path as a line strip, axes at start and goal.
+
+    Marker ids in ``ns``: 0 line strip (orange), 1 start axes, 2 goal axes (LINE_LIST, x/y/z in
+    red/green/blue). The leading DELETEALL clears markers of an earlier plan.
+
+    Args:
+        Ts: tool poses along the path, shape (N, 4, 4), N >= 1; base frame, m.
+        frame_id: frame of the markers (the base frame).
+        line_width: line width in m.
+        axis_length: length of each axis in m.
+        stamp: header stamp (zero: RViz uses the latest transform).
+    """
+    Ts = np.asarray(Ts, dtype=float).reshape(-1, 4, 4)
+    header = Header(frame_id=frame_id, stamp=stamp if stamp is not None else Time())
+    clear = Marker(header=header, ns=ns, action=Marker.DELETEALL)
+    line = Marker(header=header, ns=ns, id=0, type=Marker.LINE_STRIP, action=Marker.ADD)
+    line.pose.orientation.w = 1.0
+    line.scale.x = float(line_width)
+    line.color = ColorRGBA(r=1.0, g=0.5, b=0.0, a=1.0)
+    line.points = [_point(p) for p in Ts[:, :3, 3]]
+    markers = [clear, line]
+    for mid, T in ((1, Ts[0]), (2, Ts[-1])):
+        axes = Marker(header=header, ns=ns, id=mid, type=Marker.LINE_LIST, action=Marker.ADD)
+        axes.pose.orientation.w = 1.0
+        axes.scale.x = float(line_width)
+        alpha = 1.0 if mid == 1 else 0.6
+        for k, (r, g, b) in enumerate(_AXIS_COLORS):
+            axes.points.append(_point(T[:3, 3]))
+            axes.points.append(_point(T[:3, 3] + axis_length * T[:3, k]))
+            color = ColorRGBA(r=r, g=g, b=b, a=alpha)
+            axes.colors.extend([color, color])
+        axes.color = ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0)
+        markers.append(axes)
+    return MarkerArray(markers=markers)
+
+
+# --------------------------------------------------------------------------- joint states
+
+
+def joint_state_to_vector(msg: JointState, joint_names: Sequence[str]) -> np.ndarray:
+    """Joint positions of a sensor_msgs/JointState in the robot's order, validated.
+
+    The message may list joints in any order and may contain joints the robot does not have
+    (they are ignored); it must contain every robot joint exactly once.
+
+    Args:
+        msg: joint state (name, position; velocity/effort empty or sized like name).
+        joint_names: the robot's joint names, length dof.
+    Returns:
+        Positions, shape (dof,), rad or m.
+    Raises:
+        RequestError: names/positions of different lengths, duplicate names, missing robot
+            joints, NaN/inf positions of robot joints.
+    """
+    names = list(msg.name)
+    n = len(names)
+    if len(msg.position) != n:
+        raise RequestError(f'joint state: {n} names but {len(msg.position)} positions')
+    for field in ('velocity', 'effort'):
+        m = len(getattr(msg, field))
+        if m not in (0, n):
+            raise RequestError(f'joint state: {n} names but {m} {field} values (expected 0 or {n})')
+    index = {name: i for i, name in enumerate(names)}
+    if len(index) != n:
+        dups = sorted({x for x in names if names.count(x) > 1})
+        raise RequestError(f'joint state: duplicate joint names {dups}')
+    missing = [j for j in joint_names if j not in index]
+    if missing:
+        if len(missing) == len(joint_names):
+            raise RequestError(
+                f'joint state: none of the robot joints {list(joint_names)} (got {names})')
+        raise RequestError(f'joint state: missing robot joints {missing} (got {names})')
+    q = np.array([msg.position[index[j]] for j in joint_names], dtype=float)
+    bad = [j for j, v in zip(joint_names, q) if not np.isfinite(v)]
+    if bad:
+        raise RequestError(f'joint state: non-finite position for joints {bad}')
+    return q
+
+
+def vector_to_joint_state(joint_names: Sequence[str], q: np.ndarray,
+                          stamp: Time | None = None) -> JointState:
+    """sensor_msgs/JointState with positions ``q`` (dof,) for ``joint_names`` (velocity/effort empty)."""
+    msg = JointState()
+    msg.header.stamp = stamp if stamp is not None else Time()
+    msg.name = list(joint_names)
+    msg.position = _darray(np.asarray(q, dtype=float).reshape(-1))
+    return msg
