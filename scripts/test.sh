@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Run the whole test suite: set up .venv from the pinned requirements, then run pytest inside a
+# private loopback-only network namespace (see scripts/netns.sh).
+#
+# Usage: bash scripts/test.sh [PYTEST ARGS...]
+#   e.g. bash scripts/test.sh -x -q test/test_infra.py
+#        bash scripts/test.sh --run-slow        (also the long runs marked @pytest.mark.slow)
+# Exit code: pytest's; "no tests collected" (pytest's 5) is turned into a failure (1).
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+
+bash scripts/setup_env.sh
+venv="${GP_VENV:-.venv}"
+case "$venv" in /*) ;; *) venv="$root/$venv" ;; esac
+
+# Default target is the whole test/ tree unless a path (or node id) is given.
+target=(test)
+for a in "$@"; do
+    case "$a" in -*) continue ;; esac
+    if [ -e "${a%%::*}" ]; then target=(); break; fi
+done
+
+set +e
+bash scripts/netns.sh "$venv/bin/python" -m pytest "${target[@]}" \
+    -p no:cacheprovider --timeout="${GP_TEST_TIMEOUT:-300}" -rfEs "$@"
+rc=$?
+set -e
+if [ "$rc" -eq 5 ]; then
+    echo "test.sh: ERROR: pytest collected no tests (exit 5): treat as a failure" >&2
+    exit 1
+fi
+exit "$rc"
