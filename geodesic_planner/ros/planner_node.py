@@ -1,0 +1,526 @@
+"""ROS 2 node ``geodesic_planner``: pose-to-pose geodesic plans as JointTrajectory messages.
+
+Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default):
+
+* service ``~/plan`` (nav_msgs/srv/GetPlan): ``start``/``goal`` PoseStamped in the base frame
+  (empty frame_id = base frame; any other frame is rejected). A ``start`` with an empty frame_id
+  and an all-zero quaternion means "from the current joint state" (latest valid ``/joint_states``).
+  ``tolerance`` (m) is the allowed distance between a requested pose and the nearest reachable one
+  (arms with fewer than 6 joints); 0 means the library default. The response ``plan`` holds the
+  tool poses at the trajectory's sample times (frame_id = base frame), or no poses on failure.
+* topic ``~/joint_trajectory`` (trajectory_msgs/JointTrajectory), reliable, volatile, depth 10:
+  one message per successful plan, published before the service answers. Volatile on purpose: a
+  controller that connects later must not execute an old plan (transient_local would replay it).
+* topic ``~/path_markers`` (visualization_msgs/MarkerArray), reliable, transient_local, depth 1:
+  the tool path line strip and start/goal axes of the latest plan (RViz started later sees it).
+* subscription ``/joint_states`` (sensor_msgs/JointState, any joint order, extra joints ignored).
+  A message must contain every robot joint exactly once with finite positions; malformed
+  messages are ignored with a (rate-limited) warning naming the cause and never replace the last
+  valid state.
+
+Timing: ``path.timed(max_velocity * f, max_acceleration * f**2)`` with ``f = velocity_scaling``.
+For rest-to-rest timing under box limits this is exactly time scaling as joint_trajectory_controller
+applies it (durations / f, velocities * f, accelerations * f**2, same path), sampled every
+``sample_period`` s with positions, velocities and accelerations at every point.
+
+Executor model (issue 7): a MultiThreadedExecutor with three callback groups. The plan service is
+alone in a MutuallyExclusiveCallbackGroup, so plans are computed one at a time in request order
+and each successful plan is published exactly once, by the callback that computed it, before its
+response is sent. ``/joint_states`` has its own MutuallyExclusiveCallbackGroup, and parameter
+services stay in the node's default group, so state and parameter updates never wait behind a
+plan. Shared state is swapped atomically: the latest joint vector is an immutable tuple, and the
+configuration (robot, planner, limits) is an immutable :class:`PlannerConfig` that a request
+reads once at its start; a parameter change builds a new one (or rejects it with a reason).
+Each plan runs in a worker thread and the service waits at most ``plan_timeout`` s for it; a plan
+that is late is abandoned (its result is discarded, nothing is published) and the request fails.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
+from trajectory_msgs.msg import JointTrajectory
+from visualization_msgs.msg import MarkerArray
+
+from .. import GeodesicPlanner, load_robot
+from ..errors import GeodesicPlannerError, RequestError
+from . import conversions as cv
+
+NODE_NAME = 'geodesic_planner'
+#: Robot used when neither ``robot`` nor ``robot_description`` is given: the paper's planar 3R arm.
+DEFAULT_ROBOT = 'planar_3r'
+METRICS = ('paper', 'position')
+
+_ROBOT_KEYS = ('robot', 'robot_description', 'base_link', 'tip_link')
+_STRING, _DOUBLE, _DOUBLES, _STRINGS = 'string', 'double', 'double array', 'string array'
+
+#: name -> (default, kind, description, constraints)
+PARAMETERS: dict[str, tuple[Any, str, str, str]] = {
+    'robot': (DEFAULT_ROBOT, _STRING,
+              'Robot model: a preset name (planar_3r, rrpp, ur5e, panda) or a path to a .urdf file. '
+              'Ignored when robot_description is not empty.', 'non-empty unless robot_description is set'),
+    'robot_description': ('', _STRING,
+                          'URDF XML string (as robot_state_publisher publishes it); takes precedence '
+                          'over robot when not empty.', ''),
+    'base_link': ('', _STRING, 'Base link of the chain in the URDF (empty: the URDF root).', ''),
+    'tip_link': ('', _STRING, 'Tool link of the chain in the URDF (empty: the only leaf).', ''),
+    'joint_names': ([], _STRINGS,
+                    'Joint names used on /joint_states and in published trajectories, in chain order '
+                    '(empty: the model names).', 'empty or one unique name per joint'),
+    'metric': ('paper', _STRING,
+               "Riemannian metric: 'paper' (position + orientation, Chen et al. 2016) or 'position'.",
+               "'paper' or 'position'"),
+    'position_weight': (1.0, _DOUBLE, 'Weight of the position term of the metric.', '> 0'),
+    'orientation_weight': (1.0, _DOUBLE, 'Weight of the orientation term of the metric.', '> 0'),
+    'max_velocity': ([], _DOUBLES,
+                     'Joint velocity limits, rad/s or m/s (empty: URDF/robot defaults; one value: '
+                     'all joints).', 'empty, 1 or dof values, each finite and > 0'),
+    'max_acceleration': ([], _DOUBLES,
+                         'Joint acceleration limits, rad/s^2 or m/s^2 (empty: robot defaults; one '
+                         'value: all joints).', 'empty, 1 or dof values, each finite and > 0'),
+    'velocity_scaling': (1.0, _DOUBLE,
+                         'Time scaling factor f: durations / f, velocities * f, accelerations * f^2.',
+                         'in (0, 1]'),
+    'sample_period': (0.01, _DOUBLE, 'Time between trajectory points, s.', 'finite, > 0'),
+    'frame_id': ('', _STRING,
+                 'Base frame of requests and outputs (empty: the model base link).', ''),
+    'plan_timeout': (5.0, _DOUBLE,
+                     'Longest time a request waits for its plan, s (late plans fail).', 'finite, > 0'),
+}
+
+
+class ConfigError(GeodesicPlannerError, ValueError):
+    """A parameter value is invalid (the message names the parameter and the reason)."""
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Everything a request needs, built from the parameters and immutable once built.
+
+    Attributes:
+        robot: the kinematic model (joint names as published).
+        planner: ``GeodesicPlanner`` for ``robot`` and the metric parameters.
+        robot_key: the robot parameters the model was built from.
+        planner_key: robot key plus metric parameters.
+        joint_names: joint names in chain order (published and read from /joint_states).
+        frame_id: base frame.
+        max_velocity: unscaled limits, shape (dof,), rad/s or m/s.
+        max_acceleration: unscaled limits, shape (dof,), rad/s^2 or m/s^2.
+        velocity_scaling: time scaling factor in (0, 1].
+        sample_period: s.
+        plan_timeout: s.
+    """
+
+    robot: Any
+    planner: Any
+    robot_key: tuple
+    planner_key: tuple
+    joint_names: tuple[str, ...]
+    frame_id: str
+    max_velocity: np.ndarray
+    max_acceleration: np.ndarray
+    velocity_scaling: float
+    sample_period: float
+    plan_timeout: float
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """Messages of one successful plan and its figures for the log line."""
+
+    trajectory: JointTrajectory
+    path: Path
+    markers: MarkerArray
+    points: int
+    duration: float
+    solver_iterations: int
+    solver_ms: float
+
+
+# --------------------------------------------------------------------------- parameters
+
+def _number(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f'{name}: expected a number, got {value!r}')
+    return float(value)
+
+
+def _positive(name: str, value: Any) -> float:
+    x = _number(name, value)
+    if not math.isfinite(x) or x <= 0.0:
+        raise ConfigError(f'{name}: must be finite and > 0, got {x!r}')
+    return x
+
+
+def _string(name: str, value: Any) -> str:
+    if not isinstance(value, str):
+        raise ConfigError(f'{name}: expected a string, got {value!r}')
+    return value
+
+
+def _limits(name: str, value: Any, default: np.ndarray, dof: int) -> np.ndarray:
+    """Per-joint limits from a parameter value: empty -> default, 1 value -> broadcast, dof values."""
+    if value is None:
+        value = []
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise ConfigError(f'{name}: expected an array of numbers, got {value!r}')
+    vals = list(value)
+    if not vals:
+        return np.asarray(default, dtype=float).copy()
+    arr = np.array([_number(name, v) for v in vals], dtype=float)
+    if arr.size not in (1, dof):
+        raise ConfigError(f'{name}: {arr.size} values for a robot with {dof} joints '
+                          f'(give {dof} values, one value for all joints, or none for defaults)')
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
+        raise ConfigError(f'{name}: every value must be finite and > 0, got {arr.tolist()}')
+    return np.broadcast_to(arr, (dof,)).copy()
+
+
+def load_model(robot: str, robot_description: str, base_link: str, tip_link: str) -> Any:
+    """Robot model from a URDF string (when not empty) or a preset name / URDF path.
+
+    Raises:
+        ConfigError: the model cannot be built (message names the source and the cause).
+    """
+    base = base_link or None
+    tip = tip_link or None
+    try:
+        if robot_description.strip():
+            from ..urdf import chain_from_urdf
+            return chain_from_urdf(robot_description, base, tip)
+        if not robot.strip():
+            raise ConfigError('robot: empty (give a preset name or a URDF path, or robot_description)')
+        return load_robot(robot, base_link=base, tip_link=tip)
+    except ConfigError:
+        raise
+    except (GeodesicPlannerError, OSError, ValueError) as err:
+        source = 'robot_description' if robot_description.strip() else f'robot {robot!r}'
+        raise ConfigError(f'cannot load {source}: {err}') from err
+
+
+def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) -> PlannerConfig:
+    """Validate parameter values and build a :class:`PlannerConfig`.
+
+    The robot model and the planner are reused from ``previous`` when their parameters are
+    unchanged.
+
+    Args:
+        values: parameter name -> value for every name in :data:`PARAMETERS`.
+        previous: the configuration in use, if any.
+    Raises:
+        ConfigError: the first invalid value, with the reason.
+    """
+    robot_key = tuple(_string(k, values[k]) for k in _ROBOT_KEYS)
+    names_value = values['joint_names'] or []
+    if isinstance(names_value, (str, bytes)) or not all(isinstance(n, str) for n in names_value):
+        raise ConfigError(f'joint_names: expected an array of strings, got {names_value!r}')
+    names = tuple(names_value)
+    metric = _string('metric', values['metric'])
+    if metric not in METRICS:
+        raise ConfigError(f"metric: must be one of {list(METRICS)}, got {metric!r}")
+    pw = _positive('position_weight', values['position_weight'])
+    ow = _positive('orientation_weight', values['orientation_weight'])
+    scaling = _number('velocity_scaling', values['velocity_scaling'])
+    if not (0.0 < scaling <= 1.0):
+        raise ConfigError(f'velocity_scaling: must be in (0, 1], got {scaling!r}')
+    sample_period = _positive('sample_period', values['sample_period'])
+    plan_timeout = _positive('plan_timeout', values['plan_timeout'])
+    frame_id = _string('frame_id', values['frame_id'])
+
+    if previous is not None and previous.robot_key == robot_key + (names,):
+        robot = previous.robot
+    else:
+        model = load_model(*robot_key)
+        if names:
+            if len(names) != model.dof or len(set(names)) != len(names) or not all(names):
+                raise ConfigError(
+                    f'joint_names: need {model.dof} unique non-empty names for the joints '
+                    f'{list(model.joint_names)}, got {list(names)}')
+            try:
+                model = model.with_limits(joint_names=list(names))
+            except GeodesicPlannerError as err:
+                raise ConfigError(f'joint_names: {err}') from err
+        robot = model
+    max_velocity = _limits('max_velocity', values['max_velocity'], robot.max_velocity, robot.dof)
+    max_acceleration = _limits('max_acceleration', values['max_acceleration'],
+                               robot.max_acceleration, robot.dof)
+    planner_key = robot_key + (names, metric, pw, ow)
+    if previous is not None and previous.planner_key == planner_key:
+        planner = previous.planner
+    else:
+        try:
+            planner = GeodesicPlanner(robot, metric=metric, position_weight=pw,
+                                      orientation_weight=ow)
+        except GeodesicPlannerError as err:
+            raise ConfigError(f'cannot build the planner: {err}') from err
+    return PlannerConfig(
+        robot=robot, planner=planner, robot_key=robot_key + (names,), planner_key=planner_key,
+        joint_names=tuple(robot.joint_names), frame_id=frame_id or robot.base_link,
+        max_velocity=max_velocity, max_acceleration=max_acceleration,
+        velocity_scaling=scaling, sample_period=sample_period, plan_timeout=plan_timeout)
+
+
+# --------------------------------------------------------------------------- planning
+
+def _tolerance(value: float) -> float | None:
+    tol = float(value)
+    if not math.isfinite(tol) or tol < 0.0:
+        raise RequestError(f'tolerance: must be finite and >= 0 m, got {tol!r}')
+    return tol if tol > 0.0 else None
+
+
+def compute_plan(config: PlannerConfig, request: GetPlan.Request,
+                 current_q: np.ndarray | None, stamp: Any = None) -> PlanResult:
+    """Plan for one GetPlan request (no ROS I/O: messages in, messages out).
+
+    Args:
+        config: configuration snapshot.
+        request: start/goal poses (base frame) and tolerance (m).
+        current_q: latest valid joint state in chain order, shape (dof,), or None.
+        stamp: builtin_interfaces/Time for the Path header.
+    Raises:
+        GeodesicPlannerError: invalid or unreachable request, solver failure (message names the cause).
+    """
+    goal = cv.pose_stamped_to_matrix(request.goal, config.frame_id, 'goal')
+    tolerance = _tolerance(request.tolerance)
+    if cv.is_current_state_pose(request.start):
+        if current_q is None:
+            raise RequestError(
+                'start: "current joint state" requested (empty frame_id, zero quaternion) but no '
+                f'valid /joint_states message with the joints {list(config.joint_names)} '
+                'has been received')
+        start, start_joints = None, current_q
+    else:
+        start = cv.pose_stamped_to_matrix(request.start, config.frame_id, 'start')
+        start_joints = None
+    kwargs: dict[str, Any] = {'start_joints': start_joints}
+    if tolerance is not None:
+        kwargs['tolerance'] = tolerance
+    path = config.planner.plan(start, goal, **kwargs)
+    f = config.velocity_scaling
+    trajectory = path.timed(max_velocity=config.max_velocity * f,
+                            max_acceleration=config.max_acceleration * f * f)
+    t, q, dq, ddq = trajectory.sample(config.sample_period)
+    msg = cv.arrays_to_joint_trajectory(list(config.joint_names), t, q, dq, ddq)
+    problems = cv.validate_joint_trajectory(msg)
+    if problems:
+        raise RuntimeError(f'generated trajectory is invalid: {problems[:3]}')
+    tool = config.robot.fk(q)
+    path_msg = cv.poses_to_path(tool, config.frame_id, stamp)
+    markers = cv.path_markers(tool, config.frame_id)
+    solver = path.solver
+    return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
+                      int(solver.iterations), float(solver.time_ms))
+
+
+# --------------------------------------------------------------------------- node
+
+def _joint_state_problem(message: str) -> str:
+    """Category of a rejected joint state (warnings are rate-limited per category)."""
+    for key in ('duplicate', 'missing', 'none of', 'non-finite'):
+        if key in message:
+            return key
+    return 'length'
+
+
+class GeodesicPlannerNode(Node):
+    """The ``geodesic_planner`` node (see the module docstring for its interface).
+
+    Raises:
+        ConfigError: the initial parameters are invalid or the robot cannot be loaded.
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        for name, (default, kind, description, constraints) in PARAMETERS.items():
+            descriptor = ParameterDescriptor(
+                description=description, additional_constraints=f'{kind}; {constraints}'.rstrip('; '))
+            if kind == _STRING:
+                self.declare_parameter(name, default, descriptor)
+            else:
+                # Numbers and arrays are typed by the callback (ints accepted for doubles,
+                # empty arrays of any element type accepted).
+                descriptor.dynamic_typing = True
+                self.declare_parameter(name, default, descriptor)
+        self._config_lock = threading.Lock()
+        self._config = build_config(self._parameter_values())
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        self._state: tuple[np.ndarray, tuple[str, ...]] | None = None
+        self._last_warn: dict[str, float] = {}
+        self._abandoned = 0
+
+        self._plan_group = MutuallyExclusiveCallbackGroup()
+        self._state_group = MutuallyExclusiveCallbackGroup()
+        self.trajectory_pub = self.create_publisher(
+            JointTrajectory, '~/joint_trajectory',
+            QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                       reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE))
+        self.marker_pub = self.create_publisher(
+            MarkerArray, '~/path_markers',
+            QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                       reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.joint_state_sub = self.create_subscription(
+            JointState, '/joint_states', self._on_joint_state,
+            QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                       reliability=ReliabilityPolicy.BEST_EFFORT,
+                       durability=DurabilityPolicy.VOLATILE),
+            callback_group=self._state_group)
+        self.plan_srv = self.create_service(
+            GetPlan, '~/plan', self._on_plan,
+            qos_profile=QoSProfile(depth=64, history=HistoryPolicy.KEEP_LAST,
+                                   reliability=ReliabilityPolicy.RELIABLE,
+                                   durability=DurabilityPolicy.VOLATILE),
+            callback_group=self._plan_group)
+        c = self._config
+        self.get_logger().info(
+            f"robot '{c.robot.name}' ({c.robot.dof} joints {list(c.joint_names)}), base frame "
+            f"'{c.frame_id}', metric {self.get_parameter('metric').value}, velocity_scaling "
+            f'{c.velocity_scaling:g}; serving {self.resolve_service_name('~/plan')}')
+
+    # ------------------------------------------------------------------ parameters
+    def _parameter_values(self, changes: Sequence[Parameter] = ()) -> dict[str, Any]:
+        values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        for p in changes:
+            if p.name in values:
+                values[p.name] = p.value
+        return values
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        ours = [p for p in params if p.name in PARAMETERS]
+        if not ours:
+            return SetParametersResult(successful=True)
+        for p in ours:
+            if p.type_ == Parameter.Type.NOT_SET:
+                return SetParametersResult(successful=False,
+                                           reason=f'{p.name}: cannot be undeclared')
+        with self._config_lock:
+            try:
+                config = build_config(self._parameter_values(ours), self._config)
+            except ConfigError as err:
+                self.get_logger().warning(f'parameter update rejected: {err}')
+                return SetParametersResult(successful=False, reason=str(err))
+            except Exception as err:  # noqa: BLE001 - boundary: never let a callback crash the node
+                self.get_logger().error(f'internal error: {type(err).__name__}: {err}')
+                return SetParametersResult(successful=False,
+                                           reason=f'internal error: {type(err).__name__}: {err}')
+            self._config = config
+        names = ', '.join(f'{p.name}={p.value!r}' for p in ours if p.name != 'robot_description')
+        self.get_logger().info(f'parameters updated: {names or "robot_description"}')
+        return SetParametersResult(successful=True)
+
+    # ------------------------------------------------------------------ joint states
+    def _warn_rate_limited(self, kind: str, text: str, period: float = 2.0) -> None:
+        now = time.monotonic()
+        if now - self._last_warn.get(kind, -math.inf) >= period:
+            self._last_warn[kind] = now
+            self.get_logger().warning(text)
+
+    def _on_joint_state(self, msg: JointState) -> None:
+        names = self._config.joint_names
+        try:
+            q = cv.joint_state_to_vector(msg, names)
+        except RequestError as err:
+            self._warn_rate_limited(_joint_state_problem(str(err)),
+                                    f'ignoring /joint_states message: {err}')
+            return
+        except Exception as err:  # noqa: BLE001 - boundary
+            self._warn_rate_limited('internal', f'ignoring /joint_states message: internal error: '
+                                    f'{type(err).__name__}: {err}')
+            return
+        self._state = (q, names)
+
+    def current_joints(self, names: tuple[str, ...]) -> np.ndarray | None:
+        """Latest valid joint state for ``names`` (None if none, or if it was read for other names)."""
+        state = self._state
+        if state is None or state[1] != names:
+            return None
+        return state[0]
+
+    # ------------------------------------------------------------------ service
+    def _on_plan(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
+        t0 = time.perf_counter()
+        config = self._config
+        stamp = self.get_clock().now().to_msg()
+        response.plan = Path(header=Header(frame_id=config.frame_id, stamp=stamp))
+        current_q = self.current_joints(config.joint_names)
+        box: dict[str, Any] = {}
+        done = threading.Event()
+
+        def work() -> None:
+            try:
+                box['result'] = compute_plan(config, request, current_q, stamp)
+            except BaseException as err:  # noqa: BLE001 - handed to the service callback
+                box['error'] = err
+            finally:
+                done.set()
+
+        worker = threading.Thread(target=work, name='geodesic_plan', daemon=True)
+        worker.start()
+        if not done.wait(config.plan_timeout):
+            self._abandoned += 1
+            self.get_logger().error(
+                f'plan failed: timed out after {config.plan_timeout:g} s (plan_timeout); '
+                'the computation is abandoned and its result will be discarded')
+            return response
+        err = box.get('error')
+        if isinstance(err, GeodesicPlannerError):
+            self.get_logger().error(f'plan failed: {err}')
+            return response
+        if err is not None:
+            self.get_logger().error(f'internal error: {type(err).__name__}: {err}')
+            return response
+        result: PlanResult = box['result']
+        self.trajectory_pub.publish(result.trajectory)
+        self.marker_pub.publish(result.markers)
+        response.plan = result.path
+        total_ms = (time.perf_counter() - t0) * 1e3
+        self.get_logger().info(
+            f'plan: {result.points} points, {result.duration:.2f} s, solver '
+            f'{result.solver_iterations} it, {result.solver_ms:.1f} ms (request {total_ms:.1f} ms)')
+        return response
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script ``geodesic_planner_node``: spin until SIGINT/SIGTERM; 0 on a clean exit,
+    1 when the parameters or the robot model are invalid at start."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = GeodesicPlannerNode()
+        executor = MultiThreadedExecutor(num_threads=4)
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ConfigError, ParameterException) as err:
+        rclpy.logging.get_logger(NODE_NAME).error(f'cannot start: {err}')
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
