@@ -392,10 +392,11 @@ class GeodesicPlannerNode(Node):
                                    durability=DurabilityPolicy.VOLATILE),
             callback_group=self._plan_group)
         c = self._config
+        service = self.resolve_service_name('~/plan')
         self.get_logger().info(
             f"robot '{c.robot.name}' ({c.robot.dof} joints {list(c.joint_names)}), base frame "
             f"'{c.frame_id}', metric {self.get_parameter('metric').value}, velocity_scaling "
-            f'{c.velocity_scaling:g}; serving {self.resolve_service_name('~/plan')}')
+            f'{c.velocity_scaling:g}; serving {service}')
 
     # ------------------------------------------------------------------ parameters
     def _parameter_values(self, changes: Sequence[Parameter] = ()) -> dict[str, Any]:
