@@ -190,5 +190,7 @@ def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[np.ndarray, np.ndarray
     """Position distance (m) and rotation angle (rad) between transforms (..., 4, 4)."""
     dp = np.linalg.norm(T_a[..., :3, 3] - T_b[..., :3, 3], axis=-1)
     Rrel = np.swapaxes(T_a[..., :3, :3], -1, -2) @ T_b[..., :3, :3]
-    c = np.clip((np.trace(Rrel, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
-    return dp, np.arccos(c)
+    c = np.trace(Rrel, axis1=-2, axis2=-1) - 1.0
+    sv = np.stack([Rrel[..., 2, 1] - Rrel[..., 1, 2], Rrel[..., 0, 2] - Rrel[..., 2, 0],
+                   Rrel[..., 1, 0] - Rrel[..., 0, 1]], axis=-1)
+    return dp, np.arctan2(np.linalg.norm(sv, axis=-1), c)  # accurate for small and large angles

@@ -1,0 +1,45 @@
+"""geodesic_planner: robot-arm trajectories along geodesics of the improved metric of
+Chen, Li & Tang (2016). The library needs only numpy and scipy (no ROS)."""
+from __future__ import annotations
+
+import logging
+
+from .errors import (BagError, BVPError, GeodesicPlannerError, IKError, KinematicsError, LimitError,
+                     RequestError, SingularMetricError)
+from .geodesic import GeodesicEquations, GeodesicPath, SolverReport
+from .ik import IKSolution, solve_ik
+from .kinematics import Chain, Joint, chain_from_dh
+from .metric import Metric
+from .path import JointPath
+from .piecewise import PiecewiseGeodesicPath
+from .planner import GeodesicPlanner
+from .robots import PRESETS, load_robot
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())
+
+__version__ = '0.1.0'
+
+__all__ = [
+    'BVPError',
+    'BagError',
+    'Chain',
+    'GeodesicEquations',
+    'GeodesicPath',
+    'GeodesicPlanner',
+    'GeodesicPlannerError',
+    'IKError',
+    'IKSolution',
+    'Joint',
+    'JointPath',
+    'KinematicsError',
+    'LimitError',
+    'Metric',
+    'PRESETS',
+    'PiecewiseGeodesicPath',
+    'RequestError',
+    'SingularMetricError',
+    'SolverReport',
+    'chain_from_dh',
+    'load_robot',
+    'solve_ik',
+]

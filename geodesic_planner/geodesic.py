@@ -1,0 +1,272 @@
+"""The geodesic equations of the metric and their analytic Jacobians (NOTES.md §1).
+
+For the pull-back metric ``G = Jᵀ Ω J (+ ε I)`` the geodesic equations (paper eq. 3-4) read
+
+    G(q) q'' = − Jᵀ Ω H(q, q'),       H(q, v) = Σ_jk ∂²f/∂q_j∂q_k v_j v_k,
+
+so no Christoffel symbols are formed. :class:`GeodesicEquations` evaluates ``q''`` and, for the
+collocation solver, its exact derivatives ``∂q''/∂q`` and ``∂q''/∂q'`` (third derivatives of the
+pose from products of spatial generators, see kinematics.py), batched over many configurations.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_bvp
+
+from .errors import BVPError, SingularMetricError
+from .kinematics import Chain
+from .metric import Metric
+from .path import JointPath, QuinticHermite, check_s
+
+
+class GeodesicEquations:
+    """Right-hand side ``q'' = a(q, q')`` of the geodesic equations and its Jacobians.
+
+    Args:
+        robot: the chain.
+        metric: the metric (weights, ε).
+    """
+
+    def __init__(self, robot: Chain, metric: Metric) -> None:
+        self.robot = robot
+        self.metric = metric
+        self._mask = metric.mask
+        self._eps_eye = metric.epsilon * np.eye(robot.dof)
+
+    def _solve(self, G: np.ndarray, rhs: np.ndarray, q: np.ndarray) -> np.ndarray:
+        try:
+            return np.linalg.solve(G, rhs)
+        except np.linalg.LinAlgError:
+            self.metric.check_regular(self.robot, q, 'a point of the path')
+            raise SingularMetricError(
+                f'metric {self.metric.describe()} is numerically singular along the path '
+                f'for robot {self.robot.name!r}') from None
+
+    def acceleration(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Geodesic acceleration q'' for q, v of shape (N, dof) -> (N, dof)."""
+        return self.evaluate(q, v, jacobians=False)[0]
+
+    def evaluate(self, q: np.ndarray, v: np.ndarray, jacobians: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Acceleration and (optionally) its Jacobians.
+
+        Args:
+            q, v: joint positions and velocities w.r.t. s, shape (N, dof).
+            jacobians: also return ∂a/∂q and ∂a/∂v.
+        Returns:
+            (a, da_dq, da_dv): a (N, dof); da_dq, da_dv (N, dof, dof) with [i, j] = ∂a_i/∂(q|v)_j.
+        Raises:
+            SingularMetricError: G is singular at one of the configurations.
+        """
+        X, T = self.robot.generators(q)
+        Tn = T[:, None]
+        Y = X @ Tn                                   # ∂T/∂q_k
+        YO = Y * self._mask
+        G = np.einsum('nixy,njxy->nij', YO, Y) + self._eps_eye
+        W = X * v[..., None, None]
+        C = np.cumsum(W, axis=1)
+        P = C - W                                    # Σ_{j<k} W_j
+        Wtot = C[:, -1:]
+        terms = (W + 2.0 * P) @ W
+        Scum = np.cumsum(terms, axis=1)
+        S_all = Scum[:, -1]
+        H = S_all @ T                                # Σ_jk ∂²T v_j v_k
+        b = np.einsum('nixy,nxy->ni', YO, H)
+        if not jacobians:
+            a = self._solve(G, -b[..., None], q)[..., 0]
+            return a, None, None
+        # Jdot columns: D_k = Σ_j ∂²T/∂q_j∂q_k v_j = (C_k X_k + X_k (Wtot - C_k)) T
+        D = (C @ X + X @ (Wtot - C)) @ Tn
+        JtOD = np.einsum('nixy,nkxy->nik', YO, D)
+        # One factorisation-free batched solve for a and ∂a/∂v.
+        sol = self._solve(G, np.concatenate([-b[..., None], -2.0 * JtOD], axis=-1), q)
+        a = sol[..., 0]
+        da_dv = sol[..., 1:]
+        # ∂a/∂q_m from ∂/∂q_m [G a + b] = 0.
+        A = X * a[..., None, None]
+        PA = np.cumsum(A, axis=1) - A
+        Atot = PA[:, -1:] + A[:, -1:]
+        dJa = (PA @ X + X @ (Atot - PA)) @ Tn        # (∂J/∂q_m) a
+        S_lt = Scum - terms
+        cross = 2.0 * P @ X @ (Wtot - P)
+        S_ge = S_all[:, None] - S_lt - 2.0 * P @ (Wtot - P)
+        dH = (S_lt @ X + X @ S_ge + cross) @ Tn      # ∂H/∂q_m
+        R4 = np.einsum('nkxy,nk->nxy', Y, a) + H     # f'' = J a + H
+        Q = np.swapaxes(X, -1, -2) @ (R4 * self._mask)[:, None]
+        Nmat = np.einsum('nmxy,nkxy->nmk', Q, Y)     # <X_m X_k T, r>_Ω (valid for m <= k)
+        U = np.triu(Nmat)
+        M = U + np.swapaxes(U, -1, -2) - np.einsum('nii->ni', Nmat)[..., None] * np.eye(self.robot.dof)
+        rhs = M + np.einsum('nkxy,nmxy->nkm', YO, dJa + dH)
+        da_dq = -self._solve(G, rhs, q)
+        return a, da_dq, da_dv
+
+
+# ---------------------------------------------------------------------- boundary-value solver
+@dataclass(frozen=True)
+class SolverReport:
+    """Diagnostics of a geodesic solve.
+
+    Attributes:
+        status: scipy ``solve_bvp`` status (0 = converged).
+        message: scipy's message.
+        iterations: Newton iterations of the collocation solver.
+        max_residual: largest relative collocation residual (solve_bvp's rms_residuals).
+        mesh_size: number of mesh nodes of the solution.
+        time_ms: wall time of the whole plan (IK, initial guess, solve), ms.
+        bc_residual: largest boundary-condition error, rad or m.
+    """
+
+    status: int
+    message: str
+    iterations: int
+    max_residual: float
+    mesh_size: int
+    time_ms: float = 0.0
+    bc_residual: float = 0.0
+
+    @property
+    def success(self) -> bool:
+        """True when the collocation converged."""
+        return self.status == 0
+
+    def as_dict(self) -> dict[str, object]:
+        """JSON-friendly dict."""
+        return {'status': self.status, 'message': self.message, 'iterations': self.iterations,
+                'max_residual': self.max_residual, 'mesh_size': self.mesh_size,
+                'time_ms': self.time_ms, 'bc_residual': self.bc_residual}
+
+
+def solve_geodesic_bvp(
+    equations: GeodesicEquations,
+    q_a: np.ndarray,
+    q_b: np.ndarray,
+    s_nodes: np.ndarray,
+    q_guess: np.ndarray,
+    v_guess: np.ndarray,
+    *,
+    tol: float = 1e-8,
+    max_nodes: int = 2000,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, SolverReport]:
+    """Solve the geodesic two-point BVP q(0) = q_a, q(1) = q_b with scipy's solve_bvp.
+
+    Args:
+        q_a, q_b: boundary joint positions (dof,).
+        s_nodes: initial mesh (m,) from 0 to 1.
+        q_guess, v_guess: initial guess of q and q' at the nodes, (m, dof).
+        tol: solve_bvp's relative collocation tolerance.
+    Returns:
+        (s, q, v, report) at the solution's mesh.
+    Raises:
+        BVPError: no convergence (status, message and residual in the error).
+        SingularMetricError: the metric is singular along the way.
+    """
+    n = equations.robot.dof
+    eye = np.eye(n)
+
+    def fun(_s: np.ndarray, y: np.ndarray) -> np.ndarray:
+        a = equations.acceleration(y[:n].T, y[n:].T)
+        return np.vstack([y[n:], a.T])
+
+    def fun_jac(_s: np.ndarray, y: np.ndarray) -> np.ndarray:
+        _, da_dq, da_dv = equations.evaluate(y[:n].T, y[n:].T)
+        m = y.shape[1]
+        df = np.zeros((2 * n, 2 * n, m))
+        df[:n, n:] = eye[..., None]
+        df[n:, :n] = np.moveaxis(da_dq, 0, -1)
+        df[n:, n:] = np.moveaxis(da_dv, 0, -1)
+        return df
+
+    def bc(ya: np.ndarray, yb: np.ndarray) -> np.ndarray:
+        return np.concatenate([ya[:n] - q_a, yb[:n] - q_b])
+
+    dbc_a = np.zeros((2 * n, 2 * n))
+    dbc_a[:n, :n] = eye
+    dbc_b = np.zeros((2 * n, 2 * n))
+    dbc_b[n:, :n] = eye
+
+    def bc_jac(_ya: np.ndarray, _yb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return dbc_a, dbc_b
+
+    y0 = np.vstack([q_guess.T, v_guess.T])
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        sol = solve_bvp(fun, bc, s_nodes, y0, fun_jac=fun_jac, bc_jac=bc_jac, tol=tol,
+                        max_nodes=max_nodes, bc_tol=1e-10)
+    max_res = float(np.max(sol.rms_residuals)) if sol.rms_residuals is not None and sol.rms_residuals.size else float('nan')
+    if sol.status != 0 or not np.all(np.isfinite(sol.y)):
+        raise BVPError(
+            f'geodesic solver did not converge for robot {equations.robot.name!r} '
+            f'(solve_bvp status {sol.status}: {sol.message}; max residual {max_res:.3g}, '
+            f'{sol.x.size} nodes, {sol.niter} iterations)', status=int(sol.status), max_residual=max_res)
+    q = sol.y[:n].T
+    bc_res = float(max(np.abs(q[0] - q_a).max(), np.abs(q[-1] - q_b).max()))
+    report = SolverReport(int(sol.status), str(sol.message), int(sol.niter), max_res, int(sol.x.size),
+                          bc_residual=bc_res)
+    return sol.x, q, sol.y[n:].T, report
+
+
+class GeodesicPath(JointPath):
+    """A solved geodesic: q(s) on s ∈ [0, 1] through the collocation mesh.
+
+    Positions and first derivatives come from a C² quintic Hermite spline through the mesh
+    (values, q' and the geodesic acceleration at the nodes); ``ddq`` and ``dddq`` are the geodesic
+    equations' own: ``q'' = a(q, q')`` and ``q''' = ∂a/∂q q' + ∂a/∂q' q''``.
+
+    Attributes:
+        robot, metric: the model and metric the path is a geodesic of.
+        s_nodes, q_nodes, v_nodes: the solution mesh (m,), (m, dof), (m, dof).
+        solver: SolverReport.
+        ik_start, ik_goal: IK solutions used for the ends (None if joints were given).
+    """
+
+    def __init__(self, equations: GeodesicEquations, s_nodes: np.ndarray, q_nodes: np.ndarray,
+                 v_nodes: np.ndarray, solver: SolverReport,
+                 ik_start: object | None = None, ik_goal: object | None = None) -> None:
+        self.equations = equations
+        self.robot = equations.robot
+        self.metric = equations.metric
+        self.s_nodes, self.q_nodes, self.v_nodes = s_nodes, q_nodes, v_nodes
+        self.a_nodes = equations.acceleration(q_nodes, v_nodes)
+        self._spline = QuinticHermite(s_nodes, q_nodes, v_nodes, self.a_nodes)
+        self.solver = solver
+        self.ik_start = ik_start
+        self.ik_goal = ik_goal
+        self.length = float(np.mean(self.metric.speed(self.robot, q_nodes, v_nodes)))
+
+    @property
+    def q_start(self) -> np.ndarray:
+        """Joint positions at s = 0 (the start boundary condition)."""
+        return self.q_nodes[0].copy()
+
+    @property
+    def q_goal(self) -> np.ndarray:
+        """Joint positions at s = 1 (the goal boundary condition)."""
+        return self.q_nodes[-1].copy()
+
+    def evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """q, q', q'', q''' at s (1-D in [0, 1]); each (len(s), dof); derivatives w.r.t. s."""
+        s = check_s(s)
+        q, dq = self._spline(s, order=1)
+        a, da_dq, da_dv = self.equations.evaluate(q, dq)
+        dddq = np.einsum('nij,nj->ni', da_dq, dq) + np.einsum('nij,nj->ni', da_dv, a)
+        return q, dq, a, dddq
+
+    def metric_speed(self, s: np.ndarray) -> np.ndarray:
+        """sqrt(q'ᵀ G q') at s: constant (= length) along an exact geodesic."""
+        q, dq, _, _ = self.evaluate(s)
+        return self.metric.speed(self.robot, q, dq)
+
+    def residual(self, s: np.ndarray) -> np.ndarray:
+        """Geodesic-equation residual ‖G q'' + Jᵀ Ω H(q, q')‖ with q'' from the spline, (len(s),).
+
+        Uses the spline's own second derivative, so it measures how far the interpolated path is
+        from satisfying the equations (not zero by construction).
+        """
+        s = check_s(s)
+        q, dq, ddq = self._spline(s, order=2)
+        a = self.equations.acceleration(q, dq)
+        G = self.metric.tensor(self.robot, q)
+        return np.linalg.norm(np.einsum('nij,nj->ni', G, ddq - a), axis=-1)

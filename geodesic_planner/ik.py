@@ -1,0 +1,246 @@
+"""Inverse kinematics at the path ends: damped least squares in the metric's pose embedding.
+
+The error minimised is ``‖Ω^½ (f(q) − f*)‖`` with f = (p, n, o, a) ∈ R^12 and the metric's weights
+Ω, so for arms that cannot reach every pose (fewer than 6 joints) the answer is the nearest
+reachable pose in the least-squares sense of the metric, and its residual is reported. The planar
+3R arm also has a closed form (elbow branch θ2 > 0 by default, paper Table 2).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import IKError, RequestError
+from .kinematics import Chain, embed12
+from .transforms import pose_error
+
+#: Default allowed embedding distance between the requested pose and the nearest reachable one.
+DEFAULT_IK_TOLERANCE = 1e-3
+#: Convergence threshold on the step size (rad or m).
+STEP_TOL = 1e-13
+
+
+@dataclass(frozen=True)
+class IKSolution:
+    """Result of :func:`solve_ik`.
+
+    Attributes:
+        q: joint positions (dof,), rad or m.
+        success: residual within tolerance and q within the joint limits.
+        iterations: damped least-squares iterations used (all restarts).
+        residual: weighted embedding distance ‖Ω^½ (f(q) − f*)‖ (m-equivalent).
+        position_error: distance of the reached tool position from the target, m.
+        orientation_error: rotation angle between reached and target orientation, rad.
+        reason: why it failed ('' on success).
+    """
+
+    q: np.ndarray
+    success: bool
+    iterations: int
+    residual: float
+    position_error: float
+    orientation_error: float
+    reason: str = ''
+
+
+def _weights12(position_weight: float, orientation_weight: float) -> np.ndarray:
+    return np.concatenate([np.full(3, position_weight), np.full(9, orientation_weight)])
+
+
+def dls_batch(
+    robot: Chain,
+    targets: np.ndarray,
+    seeds: np.ndarray,
+    *,
+    position_weight: float = 1.0,
+    orientation_weight: float = 1.0,
+    max_iterations: int = 50,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Batched Levenberg-Marquardt on the weighted embedding error.
+
+    Args:
+        targets: target transforms (N, 4, 4).
+        seeds: initial joints (N, dof).
+    Returns:
+        (q, residual, iterations): q (N, dof); residual (N,) weighted embedding distance.
+    """
+    w = _weights12(position_weight, orientation_weight)
+    f_star = embed12(targets) * w
+    q = np.array(seeds, dtype=float, copy=True)
+    n = robot.dof
+    lam = np.full(q.shape[0], 1e-3)
+    X, T = robot.generators(q)
+    e = embed12(T) * w - f_star
+    cost = np.einsum('ni,ni->n', e, e)
+    it = 0
+    for it in range(1, max_iterations + 1):
+        J = embed12(X @ T[:, None]).transpose(0, 2, 1) * w[:, None]   # (N, 12, dof)
+        JtJ = np.einsum('nki,nkj->nij', J, J)
+        g = np.einsum('nki,nk->ni', J, e)
+        scale = np.einsum('nii->ni', JtJ).max(axis=1) + 1e-12
+        A = JtJ + (lam * scale)[:, None, None] * np.eye(n)
+        dq = -np.linalg.solve(A, g[..., None])[..., 0]
+        q_new = q + dq
+        X_new, T_new = robot.generators(q_new)
+        e_new = embed12(T_new) * w - f_star
+        cost_new = np.einsum('ni,ni->n', e_new, e_new)
+        better = cost_new <= cost
+        q = np.where(better[:, None], q_new, q)
+        X = np.where(better[:, None, None, None], X_new, X)
+        T = np.where(better[:, None, None], T_new, T)
+        e = np.where(better[:, None], e_new, e)
+        step = np.abs(dq).max(axis=1)
+        cost = np.where(better, cost_new, cost)
+        lam = np.where(better, np.maximum(lam * 0.1, 1e-12), lam * 10.0)
+        if np.all((step < STEP_TOL) | (cost < 1e-26) | (better & (step < 1e-10))):
+            break
+    return q, np.sqrt(cost), it
+
+
+def _wrap_into_limits(robot: Chain, q: np.ndarray) -> np.ndarray:
+    """Shift revolute joints by multiples of 2π towards their limits (the pose is unchanged)."""
+    q = q.copy()
+    for i, kind in enumerate(robot.joint_types):
+        if kind != 'revolute':
+            continue
+        lo, hi = robot.lower[i], robot.upper[i]
+        if np.isfinite(lo) and np.isfinite(hi) and hi - lo >= 2 * np.pi - 1e-12:
+            mid = 0.5 * (lo + hi)
+            q[i] = mid + (q[i] - mid + np.pi) % (2 * np.pi) - np.pi
+            if q[i] > hi:
+                q[i] -= 2 * np.pi
+            if q[i] < lo:
+                q[i] += 2 * np.pi
+        elif np.isfinite(lo) and np.isfinite(hi):
+            for k in (-1, 1):
+                cand = q[i] + k * 2 * np.pi
+                if not lo <= q[i] <= hi and lo <= cand <= hi:
+                    q[i] = cand
+    return q
+
+
+def planar_3r_ik(T: np.ndarray, link_lengths: tuple[float, float, float] = (1.0, 1.0, 1.0),
+                 elbow: int = 1) -> np.ndarray | None:
+    """Closed-form IK of the planar 3R arm: pose in the xy plane -> (θ1, θ2, θ3), or None if unreachable.
+
+    Args:
+        T: 4x4 target; only x, y and the yaw φ = atan2(n_y, n_x) are used.
+        elbow: +1 for θ2 >= 0 (paper Table 2), -1 for the other branch.
+    """
+    l1, l2, l3 = link_lengths
+    phi = np.arctan2(T[1, 0], T[0, 0])
+    wx = T[0, 3] - l3 * np.cos(phi)
+    wy = T[1, 3] - l3 * np.sin(phi)
+    c2 = (wx * wx + wy * wy - l1 * l1 - l2 * l2) / (2 * l1 * l2)
+    if not -1.0 - 1e-12 <= c2 <= 1.0 + 1e-12:
+        return None
+    t2 = elbow * np.arccos(np.clip(c2, -1.0, 1.0))
+    t1 = np.arctan2(wy, wx) - np.arctan2(l2 * np.sin(t2), l1 + l2 * np.cos(t2))
+    t3 = phi - t1 - t2
+    q = np.array([t1, t2, t3])
+    return (q + np.pi) % (2 * np.pi) - np.pi
+
+
+def solve_ik(
+    robot: Chain,
+    T_target: np.ndarray,
+    seed: np.ndarray | None = None,
+    *,
+    position_weight: float = 1.0,
+    orientation_weight: float = 1.0,
+    tolerance: float | None = None,
+    restarts: int = 8,
+    rng_seed: int = 0,
+    raise_on_failure: bool = True,
+) -> IKSolution:
+    """Joint positions reaching ``T_target`` (or the nearest reachable pose), near ``seed``.
+
+    Args:
+        robot: the chain.
+        T_target: 4x4 base->tool target.
+        seed: initial joints (dof,); the robot's home when None. The branch found is the one the
+            seed leads to (so seeding the goal with the start solution keeps the branch).
+        tolerance: allowed weighted embedding distance to the target (default 1e-3).
+        restarts: extra random seeds (within limits) tried if the seed does not succeed.
+    Returns:
+        IKSolution.
+    Raises:
+        IKError: unreachable beyond tolerance or outside joint limits (if raise_on_failure).
+    """
+    tol = DEFAULT_IK_TOLERANCE if tolerance is None or tolerance <= 0 else float(tolerance)
+    T_target = np.asarray(T_target, dtype=float)
+    q0 = robot.home if seed is None else robot.check_joints(seed, 'IK seed')
+    seeds = [np.asarray(q0, dtype=float)]
+    if robot.name == 'planar_3r' and abs(T_target[2, 3]) < 1e-9:
+        closed = [c for c in (planar_3r_ik(T_target, elbow=1), planar_3r_ik(T_target, elbow=-1))
+                  if c is not None]
+        if closed:
+            # Default branch θ2 > 0 (paper Table 2); with a seed, the branch nearest to it.
+            if seed is not None:
+                closed.sort(key=lambda c: float(np.linalg.norm(c - seeds[0])))
+            seeds = [closed[0], seeds[0], *closed[1:]]
+    rng = np.random.default_rng(rng_seed)
+    lo = np.where(np.isfinite(robot.lower), robot.lower, -np.pi)
+    hi = np.where(np.isfinite(robot.upper), robot.upper, np.pi)
+    seeds += list(rng.uniform(lo, hi, size=(restarts, robot.dof)))
+    seeds_arr = np.array(seeds)
+    total_it = 0
+    best: IKSolution | None = None
+    # First the preferred seeds alone (branch consistency), then all restarts at once.
+    for batch in (seeds_arr[:1], seeds_arr[1:]):
+        if batch.shape[0] == 0:
+            continue
+        q, res, it = dls_batch(robot, np.broadcast_to(T_target, (batch.shape[0], 4, 4)), batch,
+                               position_weight=position_weight, orientation_weight=orientation_weight,
+                               max_iterations=100)
+        total_it += it
+        for k in range(q.shape[0]):
+            qk = _wrap_into_limits(robot, q[k])
+            ok_lim = bool(robot.within_limits(qk, 1e-9))
+            cand_res = float(res[k])
+            good = ok_lim and cand_res <= tol
+            if best is None or (good and not best.success) or (
+                    good == best.success and cand_res < best.residual - 1e-12 and (not good or k == 0)):
+                dp, dr = pose_error(robot.fk(qk), T_target)
+                reason = ''
+                if not ok_lim:
+                    reason = 'solution outside joint limits'
+                elif cand_res > tol:
+                    reason = f'nearest reachable pose is {cand_res:.4g} away (tolerance {tol:.3g})'
+                best = IKSolution(qk, good, total_it, cand_res, float(dp), float(dr), reason)
+        if best is not None and best.success:
+            break
+    assert best is not None
+    best = IKSolution(best.q, best.success, total_it, best.residual, best.position_error,
+                      best.orientation_error, best.reason)
+    if not best.success and raise_on_failure:
+        raise IKError(
+            f'IK failed for robot {robot.name!r}: {best.reason}; target position '
+            f'{np.round(T_target[:3, 3], 6).tolist()} m (position error {best.position_error:.4g} m, '
+            f'orientation error {best.orientation_error:.4g} rad)',
+            residual=best.residual, iterations=total_it)
+    return best
+
+
+def check_transform(T: object, what: str) -> np.ndarray:
+    """Validate a 4x4 homogeneous transform (finite, orthonormal rotation); returns a float array.
+
+    Raises:
+        RequestError: wrong shape, NaN/inf, or a rotation that is not orthonormal.
+    """
+    try:
+        arr = np.asarray(T, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise RequestError(f'{what}: not a numeric 4x4 transform ({err})') from err
+    if arr.shape != (4, 4):
+        raise RequestError(f'{what}: expected a 4x4 homogeneous transform, got shape {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise RequestError(f'{what}: transform contains NaN or inf')
+    R = arr[:3, :3]
+    err = float(np.abs(R.T @ R - np.eye(3)).max())
+    if err > 1e-6 or np.linalg.det(R) < 0:
+        raise RequestError(f'{what}: rotation part is not a proper rotation (|RᵀR − I| = {err:.3g})')
+    if not np.allclose(arr[3], [0, 0, 0, 1]):
+        raise RequestError(f'{what}: last row must be [0, 0, 0, 1]')
+    return arr

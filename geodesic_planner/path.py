@@ -1,0 +1,116 @@
+"""Joint paths q(s), s ∈ [0, 1]: the common interface and the quintic Hermite spline behind them.
+
+Every path (geodesic, piecewise geodesic, baselines) offers ``evaluate(s) -> (q, dq, ddq, dddq)``
+with derivatives w.r.t. s, ``ee_poses(s)`` and ``timed(...)`` (time parameterization).
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .errors import RequestError
+from .kinematics import Chain
+
+if TYPE_CHECKING:
+    from .timing import Trajectory
+
+
+def check_s(s: object) -> np.ndarray:
+    """Validate a path-parameter array: 1-D, finite, inside [0, 1] (tiny round-off clipped).
+
+    Raises:
+        RequestError: otherwise.
+    """
+    arr = np.atleast_1d(np.asarray(s, dtype=float))
+    if arr.ndim != 1:
+        raise RequestError(f's: expected a 1-D array, got shape {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise RequestError('s: contains NaN or inf')
+    if arr.size and (arr.min() < -1e-12 or arr.max() > 1 + 1e-12):
+        raise RequestError(f's: values must lie in [0, 1], got [{arr.min():.6g}, {arr.max():.6g}]')
+    return np.clip(arr, 0.0, 1.0)
+
+
+class JointPath(ABC):
+    """A joint path over s ∈ [0, 1] for a robot."""
+
+    robot: Chain
+
+    @abstractmethod
+    def evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """q, dq/ds, d²q/ds², d³q/ds³ at s (1-D in [0, 1]); each (len(s), dof); rad or m."""
+
+    @property
+    def joint_names(self) -> list[str]:
+        """Joint names in the robot's order."""
+        return list(self.robot.joint_names)
+
+    @property
+    def dof(self) -> int:
+        """Number of joints."""
+        return self.robot.dof
+
+    @property
+    def q_start(self) -> np.ndarray:
+        """Joint positions at s = 0."""
+        return self.evaluate(np.array([0.0]))[0][0]
+
+    @property
+    def q_goal(self) -> np.ndarray:
+        """Joint positions at s = 1."""
+        return self.evaluate(np.array([1.0]))[0][0]
+
+    def ee_poses(self, s: np.ndarray) -> np.ndarray:
+        """Tool poses (len(s), 4, 4) along the path, base frame."""
+        return self.robot.fk(self.evaluate(check_s(s))[0])
+
+    def timed(self, max_velocity: object = None, max_acceleration: object = None,
+              duration: float | None = None) -> Trajectory:
+        """Rest-to-rest time parameterization under per-joint limits (see timing.py).
+
+        Args:
+            max_velocity, max_acceleration: per-joint limits (scalars broadcast); the robot's
+                limits when None; rad/s (m/s), rad/s² (m/s²).
+            duration: stretch to exactly this duration, s (must not be shorter than feasible).
+        """
+        from .timing import time_parameterize
+        return time_parameterize(self, max_velocity=max_velocity, max_acceleration=max_acceleration,
+                                 duration=duration)
+
+
+class QuinticHermite:
+    """C² piecewise-quintic interpolation of values, first and second derivatives at knots.
+
+    Args:
+        x: knots (m,), strictly increasing.
+        y, dy, ddy: values and derivatives at the knots, (m, d).
+    """
+
+    def __init__(self, x: np.ndarray, y: np.ndarray, dy: np.ndarray, ddy: np.ndarray) -> None:
+        self.x = np.asarray(x, dtype=float)
+        self.y, self.dy, self.ddy = (np.asarray(a, dtype=float) for a in (y, dy, ddy))
+
+    def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]:
+        """Values and derivatives up to ``order`` (<= 5) at xs (k,): list of (k, d) arrays."""
+        x = self.x
+        i = np.clip(np.searchsorted(x, xs, side='right') - 1, 0, x.size - 2)
+        h = (x[i + 1] - x[i])[:, None]
+        t = ((xs - x[i])[:, None]) / h
+        p0, v0, a0 = self.y[i], self.dy[i] * h, self.ddy[i] * h * h
+        p1, v1, a1 = self.y[i + 1], self.dy[i + 1] * h, self.ddy[i + 1] * h * h
+        # Polynomial coefficients in t: p(t) = Σ c_k t^k
+        c0, c1, c2 = p0, v0, 0.5 * a0
+        c3 = 10 * (p1 - p0) - 6 * v0 - 4 * v1 - 1.5 * a0 + 0.5 * a1
+        c4 = -15 * (p1 - p0) + 8 * v0 + 7 * v1 + 1.5 * a0 - a1
+        c5 = 6 * (p1 - p0) - 3 * v0 - 3 * v1 - 0.5 * a0 + 0.5 * a1
+        coeffs = [c0, c1, c2, c3, c4, c5]
+        out = []
+        for d in range(order + 1):
+            acc = np.zeros_like(p0)
+            for k in range(5, d - 1, -1):
+                fac = float(np.prod(np.arange(k - d + 1, k + 1))) if d else 1.0
+                acc = acc * t + fac * coeffs[k]
+            out.append(acc / h**d)
+        return out

@@ -1,0 +1,76 @@
+"""Piecewise geodesics through via points with the paper's trajectory scaling (eq. 10).
+
+Each piece i is a geodesic on its own parameter u ∈ [0, 1] with constant metric speed L_i (its
+length). Piece i gets the global interval of width Δs_i = L_i / Σ L, so that along the whole path
+the metric speed is the same constant Σ L on both sides of every junction (the paper's velocity
+continuity); ``q(s) = q_i((s − s_i)/Δs_i)`` and the k-th derivative divides by Δs_i^k.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .geodesic import GeodesicPath, SolverReport
+from .path import JointPath, check_s
+
+
+class PiecewiseGeodesicPath(JointPath):
+    """Geodesic pieces joined at via points, scaled to equal metric speed.
+
+    Attributes:
+        pieces: the geodesic pieces, in order.
+        breakpoints: global s of the junctions, (len(pieces) + 1,), from 0 to 1.
+        length: total metric length (= constant metric speed over s ∈ [0, 1]).
+        solver: aggregate SolverReport (worst status/residual, summed iterations and time).
+    """
+
+    def __init__(self, pieces: Sequence[GeodesicPath], time_ms: float = 0.0) -> None:
+        if not pieces:
+            raise ValueError('a piecewise path needs at least one piece')
+        lengths = np.array([p.length for p in pieces])
+        keep = lengths > 1e-12 * max(lengths.max(), 1e-300)
+        if not np.any(keep):
+            keep[0] = True
+        self.pieces = [p for p, k in zip(pieces, keep) if k]
+        lengths = lengths[keep]
+        self.robot = self.pieces[0].robot
+        self.metric = self.pieces[0].metric
+        total = float(lengths.sum())
+        widths = lengths / total if total > 0 else np.full(len(self.pieces), 1.0 / len(self.pieces))
+        self.breakpoints = np.concatenate([[0.0], np.cumsum(widths)])
+        self.breakpoints[-1] = 1.0
+        self.length = total
+        reps = [p.solver for p in self.pieces]
+        self.solver = SolverReport(
+            max(r.status for r in reps), '; '.join(sorted({r.message for r in reps})),
+            sum(r.iterations for r in reps), max(r.max_residual for r in reps),
+            sum(r.mesh_size for r in reps), time_ms, max(r.bc_residual for r in reps))
+
+    @property
+    def q_start(self) -> np.ndarray:
+        """Joint positions at s = 0."""
+        return self.pieces[0].q_start
+
+    @property
+    def q_goal(self) -> np.ndarray:
+        """Joint positions at s = 1."""
+        return self.pieces[-1].q_goal
+
+    @property
+    def via_joints(self) -> np.ndarray:
+        """Joint positions at every junction (len(pieces) + 1, dof)."""
+        return np.array([self.pieces[0].q_start] + [p.q_goal for p in self.pieces])
+
+    def evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """q, q', q'', q''' at global s (1-D in [0, 1]); each (len(s), dof)."""
+        s = check_s(s)
+        idx = np.clip(np.searchsorted(self.breakpoints, s, side='right') - 1, 0, len(self.pieces) - 1)
+        out = [np.empty((s.size, self.dof)) for _ in range(4)]
+        for i in np.unique(idx):
+            sel = idx == i
+            w = self.breakpoints[i + 1] - self.breakpoints[i]
+            u = np.clip((s[sel] - self.breakpoints[i]) / w, 0.0, 1.0)
+            for k, arr in enumerate(self.pieces[i].evaluate(u)):
+                out[k][sel] = arr / w**k
+        return out[0], out[1], out[2], out[3]

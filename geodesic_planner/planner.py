@@ -1,0 +1,195 @@
+"""GeodesicPlanner: pose (or joint) boundary conditions -> geodesic joint path (paper Fig. 1).
+
+1. IK only at the two ends (goal seeded with the start solution: one consistent branch).
+2. Initial guess: the task-space geodesic (straight line + slerp) pulled back by batched damped
+   least squares along the mesh; for arms with exactly 6 joints (and the planar 3R) this *is* the
+   exact geodesic, so the collocation converges in one or two Newton steps.
+3. The geodesic BVP of the metric, solved by collocation (geodesic.py).
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .errors import RequestError
+from .geodesic import GeodesicEquations, GeodesicPath, SolverReport, solve_geodesic_bvp
+from .ik import IKSolution, check_transform, dls_batch, solve_ik
+from .kinematics import Chain, embed12
+from .metric import DEFAULT_REDUNDANT_EPSILON, Metric
+from .transforms import hat, line_slerp, so3_log
+
+if TYPE_CHECKING:
+    from .piecewise import PiecewiseGeodesicPath
+
+#: Default number of initial mesh nodes.
+DEFAULT_NODES = 21
+
+
+class GeodesicPlanner:
+    """Plans geodesics of the paper's metric between start and goal poses.
+
+    Args:
+        robot: the chain (see ``load_robot``).
+        metric: ``'paper'`` (default, improved metric eq. 7) or ``'position'`` (traditional dp²).
+        position_weight, orientation_weight: metric weights (orientation weight in m).
+        epsilon: joint-space term ε in ``G + ε I``; None = 0 for up to 6 joints and
+            ``DEFAULT_REDUNDANT_EPSILON`` beyond (the paper's metric is singular there).
+        nodes: initial collocation mesh size.
+        tol: collocation tolerance (relative residual).
+        max_nodes: mesh size limit (bounds solve time).
+        ik_tolerance: allowed distance between a requested pose and the nearest reachable one.
+
+    Raises:
+        RequestError: unknown metric or invalid weights.
+    """
+
+    def __init__(self, robot: Chain, metric: str = 'paper', *, position_weight: float = 1.0,
+                 orientation_weight: float = 1.0, epsilon: float | None = None,
+                 nodes: int = DEFAULT_NODES, tol: float = 1e-8, max_nodes: int = 2000,
+                 ik_tolerance: float | None = None) -> None:
+        if epsilon is None:
+            epsilon = DEFAULT_REDUNDANT_EPSILON if robot.dof > 6 else 0.0
+        self.robot = robot
+        self.metric = Metric(metric, float(position_weight), float(orientation_weight), float(epsilon))
+        self.equations = GeodesicEquations(robot, self.metric)
+        if not 3 <= int(nodes) <= max_nodes:
+            raise RequestError(f'nodes must be in [3, max_nodes], got {nodes}')
+        self.nodes = int(nodes)
+        self.tol = float(tol)
+        self.max_nodes = int(max_nodes)
+        self.ik_tolerance = ik_tolerance
+
+    # ------------------------------------------------------------------ ends
+    def _ik(self, T: np.ndarray, seed: np.ndarray | None, tolerance: float | None) -> IKSolution:
+        return solve_ik(self.robot, T, seed, position_weight=self.metric.position_weight,
+                        orientation_weight=self.metric.effective_orientation_weight or 1.0,
+                        tolerance=self.ik_tolerance if tolerance is None else tolerance)
+
+    def resolve_ends(self, start: np.ndarray | None, goal: np.ndarray | None,
+                     start_joints: object = None, goal_joints: object = None,
+                     tolerance: float | None = None,
+                     ) -> tuple[np.ndarray, np.ndarray, IKSolution | None, IKSolution | None]:
+        """Joint boundary conditions from poses or joints (joints win when both are given).
+
+        Raises:
+            RequestError: missing/invalid end; IKError: unreachable pose.
+        """
+        ik_a = ik_b = None
+        if start_joints is not None:
+            q_a = self.robot.check_joints(start_joints, 'start_joints')
+        elif start is not None:
+            ik_a = self._ik(check_transform(start, 'start pose'), None, tolerance)
+            q_a = ik_a.q
+        else:
+            raise RequestError('start: give a start pose or start_joints')
+        if goal_joints is not None:
+            q_b = self.robot.check_joints(goal_joints, 'goal_joints')
+        elif goal is not None:
+            ik_b = self._ik(check_transform(goal, 'goal pose'), q_a, tolerance)
+            q_b = ik_b.q
+        else:
+            raise RequestError('goal: give a goal pose or goal_joints')
+        return np.array(q_a, dtype=float), np.array(q_b, dtype=float), ik_a, ik_b
+
+    # ------------------------------------------------------------------ guess
+    def initial_guess(self, q_a: np.ndarray, q_b: np.ndarray, s: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """Initial q, q' at the mesh s: task-space line + slerp pulled back by batched DLS.
+
+        Falls back to joint-space linear interpolation if the pull-back jumps branches.
+        """
+        robot = self.robot
+        q_lin = q_a + s[:, None] * (q_b - q_a)
+        v_lin = np.broadcast_to(q_b - q_a, q_lin.shape).copy()
+        if np.allclose(q_a, q_b):
+            return q_lin, v_lin
+        wp = self.metric.position_weight
+        wo = self.metric.effective_orientation_weight
+        T_a, T_b = robot.fk(np.stack([q_a, q_b]))
+        targets = line_slerp(T_a, T_b, s)
+        q_g, _, _ = dls_batch(robot, targets, q_lin, position_weight=wp, orientation_weight=wo or 1.0,
+                              max_iterations=15)
+        q_g[0], q_g[-1] = q_a, q_b
+        step = np.abs(np.diff(q_g, axis=0)).max()
+        if not np.all(np.isfinite(q_g)) or step > 3.0 * np.abs(np.diff(q_lin, axis=0)).max() + 0.05:
+            return q_lin, v_lin
+        # q' = least-squares pull-back of the task velocity (exact on the task geodesic).
+        w_body = so3_log(T_a[:3, :3].T @ T_b[:3, :3])
+        fdot = np.zeros((s.size, 4, 4))
+        fdot[:, :3, :3] = targets[:, :3, :3] @ hat(w_body)
+        fdot[:, :3, 3] = T_b[:3, 3] - T_a[:3, 3]
+        wts = np.concatenate([np.full(3, wp), np.full(9, wo)])
+        X, T = robot.generators(q_g)
+        J = embed12(X @ T[:, None]).transpose(0, 2, 1) * wts[:, None]
+        rhs = np.einsum('nki,nk->ni', J, embed12(fdot) * wts)
+        A = np.einsum('nki,nkj->nij', J, J) + (self.metric.epsilon + 1e-12) * np.eye(robot.dof)
+        v_g = np.linalg.solve(A, rhs[..., None])[..., 0]
+        return q_g, v_g
+
+    # ------------------------------------------------------------------ plan
+    def plan(self, start: np.ndarray | None, goal: np.ndarray | None, start_joints: object = None,
+             goal_joints: object = None, *, tolerance: float | None = None) -> GeodesicPath:
+        """Geodesic from start to goal.
+
+        Args:
+            start, goal: 4x4 base->tool transforms (m), or None when the joints are given.
+            start_joints, goal_joints: (dof,) joint boundary conditions (override the poses).
+            tolerance: allowed distance to the nearest reachable pose (default: planner's).
+        Returns:
+            GeodesicPath with ``solver`` diagnostics (time_ms covers IK, guess and solve).
+        Raises:
+            RequestError, IKError, SingularMetricError, BVPError (all GeodesicPlannerError).
+        """
+        t0 = time.perf_counter()
+        q_a, q_b, ik_a, ik_b = self.resolve_ends(start, goal, start_joints, goal_joints, tolerance)
+        return self._solve(q_a, q_b, ik_a, ik_b, t0)
+
+    def plan_joints(self, q_a: object, q_b: object) -> GeodesicPath:
+        """Geodesic between two joint configurations."""
+        return self.plan(None, None, start_joints=q_a, goal_joints=q_b)
+
+    def _solve(self, q_a: np.ndarray, q_b: np.ndarray, ik_a: IKSolution | None,
+               ik_b: IKSolution | None, t0: float) -> GeodesicPath:
+        self.metric.check_regular(self.robot, q_a, 'the start')
+        self.metric.check_regular(self.robot, q_b, 'the goal')
+        s = np.linspace(0.0, 1.0, self.nodes)
+        q_g, v_g = self.initial_guess(q_a, q_b, s)
+        s_sol, q_sol, v_sol, rep = solve_geodesic_bvp(self.equations, q_a, q_b, s, q_g, v_g,
+                                                      tol=self.tol, max_nodes=self.max_nodes)
+        rep = SolverReport(rep.status, rep.message, rep.iterations, rep.max_residual, rep.mesh_size,
+                           (time.perf_counter() - t0) * 1e3, rep.bc_residual)
+        return GeodesicPath(self.equations, s_sol, q_sol, v_sol, rep, ik_a, ik_b)
+
+    def plan_through(self, poses: Sequence[np.ndarray | None], start_joints: object = None, *,
+                     tolerance: float | None = None) -> PiecewiseGeodesicPath:
+        """Piecewise geodesic through via points with the paper's trajectory scaling (eq. 10).
+
+        Args:
+            poses: [T0, T1, ..., TN] 4x4 transforms; T0 may be None when start_joints is given.
+            start_joints: joints at T0 (then T0 is only informational).
+        Returns:
+            PiecewiseGeodesicPath with the same evaluate(s) contract over s ∈ [0, 1].
+        Raises:
+            RequestError: fewer than 2 poses; any error of plan().
+        """
+        from .piecewise import PiecewiseGeodesicPath
+        poses = list(poses)
+        if len(poses) < 2:
+            raise RequestError(f'plan_through: needs at least 2 poses (start and goal), got {len(poses)}')
+        t0 = time.perf_counter()
+        if start_joints is not None:
+            q_prev, ik_a = self.robot.check_joints(start_joints, 'start_joints'), None
+        else:
+            if poses[0] is None:
+                raise RequestError('plan_through: give the first pose or start_joints')
+            ik_a = self._ik(check_transform(poses[0], 'via point 0'), None, tolerance)
+            q_prev = ik_a.q
+        pieces = []
+        for i, T in enumerate(poses[1:], start=1):
+            ik_b = self._ik(check_transform(T, f'via point {i}'), q_prev, tolerance)
+            pieces.append(self._solve(q_prev, ik_b.q, ik_a if i == 1 else None, ik_b, time.perf_counter()))
+            q_prev = ik_b.q
+        return PiecewiseGeodesicPath(pieces, (time.perf_counter() - t0) * 1e3)

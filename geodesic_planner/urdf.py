@@ -1,0 +1,144 @@
+"""Serial chains from URDF (root link to tip link, fixed joints folded in, limits read).
+
+Supported joint types: revolute, continuous (revolute without position limits), prismatic, fixed.
+Anything else on the chain (floating, planar, mimic joints) is rejected with a clear error.
+"""
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import numpy as np
+
+from .errors import KinematicsError
+from .kinematics import DEFAULT_MAX_ACCELERATION, DEFAULT_MAX_VELOCITY, PRISMATIC, REVOLUTE, Chain, Joint
+
+
+def _floats(text: str | None, n: int, default: list[float], what: str) -> np.ndarray:
+    if text is None:
+        return np.array(default, dtype=float)
+    try:
+        vals = [float(x) for x in text.split()]
+    except ValueError as err:
+        raise KinematicsError(f'URDF: {what}: not numbers: {text!r}') from err
+    if len(vals) != n or not np.all(np.isfinite(vals)):
+        raise KinematicsError(f'URDF: {what}: expected {n} finite numbers, got {text!r}')
+    return np.array(vals)
+
+
+def origin_transform(xyz: np.ndarray, rpy: np.ndarray) -> np.ndarray:
+    """4x4 transform of a URDF <origin xyz rpy> (fixed-axis roll, pitch, yaw: R = Rz(y) Ry(p) Rx(r))."""
+    r, p, y = rpy
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    R = np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = xyz
+    return T
+
+
+def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None = None,
+                    name: str | None = None) -> Chain:
+    """Chain from URDF text (e.g. the robot_description parameter).
+
+    Args:
+        xml: URDF document.
+        base_link: chain root (default: the tree's root link).
+        tip_link: chain tip (default: the single leaf link; required if the tree branches).
+        name: model name (default: the robot element's name).
+    Raises:
+        KinematicsError: malformed XML, no path base->tip, a branching tree without tip_link,
+            unsupported joint types on the chain, missing limits on a revolute/prismatic joint.
+    """
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError as err:
+        raise KinematicsError(f'URDF: not valid XML ({err})') from err
+    if root.tag != 'robot':
+        raise KinematicsError(f'URDF: root element is <{root.tag}>, expected <robot>')
+    model = name or root.get('name', 'urdf_robot')
+    links = [lk.get('name') for lk in root.findall('link')]
+    joints_by_child: dict[str, ET.Element] = {}
+    children: dict[str, list[str]] = {lk: [] for lk in links if lk}
+    for j in root.findall('joint'):
+        parent = j.find('parent')
+        child = j.find('child')
+        if parent is None or child is None or not parent.get('link') or not child.get('link'):
+            raise KinematicsError(f'URDF: joint {j.get("name")!r} lacks a parent or child link')
+        c, p = child.get('link'), parent.get('link')
+        if c in joints_by_child:
+            raise KinematicsError(f'URDF: link {c!r} has two parent joints (not a tree)')
+        joints_by_child[c] = j
+        children.setdefault(p, []).append(c)
+        children.setdefault(c, [])
+    roots = [lk for lk in children if lk not in joints_by_child]
+    if base_link is None:
+        if len(roots) != 1:
+            raise KinematicsError(f'URDF: expected one root link, found {roots}; set base_link')
+        base_link = roots[0]
+    if base_link not in children:
+        raise KinematicsError(f'URDF: base_link {base_link!r} is not a link of {model!r}')
+    if tip_link is None:
+        # Follow the tree down from base_link; it must not branch.
+        link = base_link
+        while children[link]:
+            if len(children[link]) > 1:
+                raise KinematicsError(
+                    f'URDF: not a serial chain: link {link!r} has {len(children[link])} children '
+                    f'{children[link]}; set tip_link')
+            link = children[link][0]
+        tip_link = link
+    if tip_link not in children:
+        raise KinematicsError(f'URDF: tip_link {tip_link!r} is not a link of {model!r}')
+    # Walk up from tip to base.
+    path = []
+    link = tip_link
+    while link != base_link:
+        j = joints_by_child.get(link)
+        if j is None:
+            raise KinematicsError(f'URDF: tip_link {tip_link!r} is not below base_link {base_link!r}')
+        path.append(j)
+        link = j.find('parent').get('link')  # type: ignore[union-attr]
+    path.reverse()
+    fixed = [np.eye(4)]
+    joints: list[Joint] = []
+    for j in path:
+        jname = j.get('name', '?')
+        jtype = j.get('type', '')
+        org = j.find('origin')
+        T = origin_transform(
+            _floats(org.get('xyz') if org is not None else None, 3, [0, 0, 0], f'joint {jname!r} origin xyz'),
+            _floats(org.get('rpy') if org is not None else None, 3, [0, 0, 0], f'joint {jname!r} origin rpy'))
+        fixed[-1] = fixed[-1] @ T
+        if jtype == 'fixed':
+            continue
+        if jtype not in ('revolute', 'continuous', 'prismatic'):
+            raise KinematicsError(f'URDF: joint {jname!r} has unsupported type {jtype!r} '
+                                  '(supported: revolute, continuous, prismatic, fixed)')
+        if j.find('mimic') is not None:
+            raise KinematicsError(f'URDF: joint {jname!r} is a mimic joint (unsupported)')
+        ax = j.find('axis')
+        axis = _floats(ax.get('xyz') if ax is not None else None, 3, [1, 0, 0], f'joint {jname!r} axis')
+        lim = j.find('limit')
+        lower, upper, vel = -np.inf, np.inf, DEFAULT_MAX_VELOCITY
+        if lim is not None:
+            try:
+                if jtype != 'continuous':
+                    lower = float(lim.get('lower', 0.0))
+                    upper = float(lim.get('upper', 0.0))
+                v = float(lim.get('velocity', DEFAULT_MAX_VELOCITY))
+            except ValueError as err:
+                raise KinematicsError(f'URDF: joint {jname!r}: bad <limit> ({err})') from err
+            vel = v if v > 0 else DEFAULT_MAX_VELOCITY
+        elif jtype != 'continuous':
+            raise KinematicsError(f'URDF: joint {jname!r} ({jtype}) needs a <limit> element')
+        kind = PRISMATIC if jtype == 'prismatic' else REVOLUTE
+        joints.append(Joint(jname, kind, axis, lower, upper, vel, DEFAULT_MAX_ACCELERATION))
+        fixed.append(np.eye(4))
+    if not joints:
+        raise KinematicsError(f'URDF: no actuated joint between {base_link!r} and {tip_link!r}')
+    home = np.clip(np.zeros(len(joints)), [jt.lower for jt in joints], [jt.upper for jt in joints])
+    return Chain(model, joints, fixed, base_link=base_link, tip_link=tip_link, home=home)
