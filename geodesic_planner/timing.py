@@ -1,0 +1,447 @@
+"""Time parameterization of a geometric path under joint velocity and acceleration limits.
+
+The paper (Lemma 2) notes that a geodesic's speed is set by rescaling its parameter. This module
+turns that into a practical time law ``s(t)`` for any path ``q(s)``, ``s`` in [0, 1]:
+
+1. **Time-optimal profile** (TOPP-RA-like, Pham & Pham 2018): on a uniform grid of ``s`` the squared
+   path speed ``x = sdot^2`` is computed by a backward pass (largest ``x`` from which the end can
+   still be reached at rest) and a greedy forward pass (largest admissible ``sddot``), subject to
+   ``|q'(s) sdot| <= vmax`` and ``|q'(s) sddot + q''(s) sdot^2| <= amax`` per joint. ``sddot`` is
+   constant per grid interval, so the optimal law ``s*(t)`` is piecewise quadratic in time; its
+   duration is :attr:`Trajectory.topp_duration`.
+2. **Smoothing**: ``s*(t)`` has acceleration jumps (bang-bang), including at both ends. It is
+   convolved with a triangular kernel of half-width ``tau = smoothing * T* / 2``, done exactly:
+   ``s(t) = (S2(t + tau) - 2 S2(t) + S2(t - tau)) / tau^2`` with ``S2`` the second antiderivative
+   of ``s*`` (``s*`` = 0 before the start, 1 after the end). Hence ``sddot`` is the second central
+   difference of ``s*`` (continuous), the jerk is bounded, and both ends have zero velocity AND zero
+   acceleration. The duration becomes ``T* + 2 tau``.
+3. **Guarantee**: the law is checked on a dense time grid against the full limits; if smoothing
+   pushed any joint over a limit, time is stretched uniformly (``t -> lambda t`` divides velocities
+   by ``lambda`` and accelerations by ``lambda^2``) until every sample is within limits with a
+   small margin. :attr:`Trajectory.optimality_ratio` reports ``min_duration / topp_duration``.
+4. ``duration=`` stretches the law uniformly to exactly that duration (never shorter than the
+   minimum, which the error names).
+
+The path never changes: ``q(t) = path.q(s(t))``, ``dq/dt = q' sdot``,
+``d2q/dt2 = q' sddot + q'' sdot^2``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from .errors import LimitError
+
+#: Relative margin kept below the limits (TOPP uses limits * (1 - TOPP_MARGIN)).
+TOPP_MARGIN = 1e-3
+#: After the dense check every sample satisfies |value| <= limit * (1 - CHECK_MARGIN).
+CHECK_MARGIN = 1e-4
+#: Cap on sdot^2 (1/s^2) where a path segment does not move any joint.
+_X_CAP = 1e12
+
+
+class PathLike(Protocol):
+    """What :func:`time_parameterize` needs from a path."""
+
+    joint_names: Any
+    robot: Any
+
+    def evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(q, q', q'', q''') at ``s`` (N,), each (N, dof); derivatives w.r.t. s."""
+
+
+def _limits(value: Any, default: Any, dof: int, joint_names: list[str], what: str) -> np.ndarray:
+    """Validate a per-joint limit (scalar broadcast); LimitError names the joint."""
+    source = 'robot default' if value is None else 'requested'
+    if value is None:
+        value = default
+    if value is None:
+        raise LimitError(f'{what}: no limit given and the robot has no default')
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise LimitError(f'{what}: not a number or list of numbers ({err})') from err
+    if arr.ndim == 0:
+        arr = np.full(dof, float(arr))
+    arr = arr.reshape(-1)
+    if arr.shape != (dof,):
+        raise LimitError(f'{what}: expected 1 or {dof} values (one per joint), got {arr.size}')
+    for i, v in enumerate(arr):
+        if not (math.isfinite(v) and v > 0.0):
+            raise LimitError(
+                f"{what} for joint '{joint_names[i]}' must be positive and finite, got {v!r} ({source})")
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class _TimeLaw:
+    """Smoothed time-optimal law s(t) on [0, T* + 2 tau] (before the uniform time scale)."""
+
+    t_k: np.ndarray    # (N+1,) times of the grid points in s*(t), s
+    s_k: np.ndarray    # (N+1,) grid of s
+    v_k: np.ndarray    # (N+1,) sdot* at the grid points, 1/s
+    u_k: np.ndarray    # (N,) sddot* per interval, 1/s^2
+    S1_k: np.ndarray   # (N+1,) integral of s* from 0 to t_k
+    S2_k: np.ndarray   # (N+1,) double integral of s*
+    tau: float         # half-width of the triangular kernel, s
+
+    @property
+    def t_star(self) -> float:
+        return float(self.t_k[-1])
+
+    @property
+    def duration(self) -> float:
+        return self.t_star + 2.0 * self.tau
+
+    def _star(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """s*, sdot*, S1, S2 at times t (any shape); s* = 0 before 0 and 1 after T*."""
+        T = self.t_star
+        n = self.u_k.size
+        tc = np.clip(t, 0.0, T)
+        k = np.clip(np.searchsorted(self.t_k, tc, side='right') - 1, 0, n - 1)
+        r = tc - self.t_k[k]
+        s0, v0, u = self.s_k[k], self.v_k[k], self.u_k[k]
+        s = s0 + v0 * r + u * r**2 / 2.0
+        sd = v0 + u * r
+        S1 = self.S1_k[k] + s0 * r + v0 * r**2 / 2.0 + u * r**3 / 6.0
+        S2 = self.S2_k[k] + self.S1_k[k] * r + s0 * r**2 / 2.0 + v0 * r**3 / 6.0 + u * r**4 / 24.0
+        before = t < 0.0
+        after = t > T
+        if np.any(after):
+            e = np.where(after, t - T, 0.0)
+            S1T, S2T = self.S1_k[-1], self.S2_k[-1]
+            s = np.where(after, 1.0, s)
+            sd = np.where(after, 0.0, sd)
+            S1 = np.where(after, S1T + e, S1)
+            S2 = np.where(after, S2T + S1T * e + e**2 / 2.0, S2)
+        if np.any(before):
+            s, sd, S1, S2 = (np.where(before, 0.0, a) for a in (s, sd, S1, S2))
+        return s, sd, S1, S2
+
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """s, sdot, sddot, sdddot at law times t (clipped to [0, duration])."""
+        t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        tau = self.tau
+        c = t - tau
+        sp, vp, S1p, S2p = self._star(c + tau)
+        s0, v0, S10, S20 = self._star(c)
+        sm, vm, S1m, S2m = self._star(c - tau)
+        inv = 1.0 / tau**2
+        s = (S2p - 2.0 * S20 + S2m) * inv
+        sd = (S1p - 2.0 * S10 + S1m) * inv
+        sdd = (sp - 2.0 * s0 + sm) * inv
+        sddd = (vp - 2.0 * v0 + vm) * inv
+        s = np.clip(s, 0.0, 1.0)
+        sd = np.maximum(sd, 0.0)
+        # Exact ends: at rest, at s = 0 and s = 1.
+        end = t >= self.duration
+        start = t <= 0.0
+        s = np.where(end, 1.0, np.where(start, 0.0, s))
+        zero = end | start
+        sd, sdd, sddd = (np.where(zero, 0.0, a) for a in (sd, sdd, sddd))
+        return s, sd, sdd, sddd
+
+
+def _topp(a: np.ndarray, b: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
+    """Time-optimal x = sdot^2 on a uniform s grid (rest at both ends), TOPP-RA-like.
+
+    Interpolation discretization: on step k, ``u_k`` (sddot) is constant and the acceleration
+    constraints hold at both s_k (with x_k) and s_{k+1} (with x_{k+1} = x_k + 2 h u_k); this keeps
+    the profile honest near zero-inertia points (a joint turning round, q' = 0).
+
+    Args:
+        a: q'(s_k), shape (N+1, dof).
+        b: q''(s_k), shape (N+1, dof).
+        vmax, amax: limits, shape (dof,).
+    Returns:
+        x, shape (N+1,), x[0] = x[N] = 0.
+    Raises:
+        LimitError: the path cannot be traversed (zero speed forced over a whole step).
+    """
+    n = a.shape[0] - 1
+    delta = 1.0 / n
+    absa_grid = np.abs(a)
+    scale_v = max(float(absa_grid.max()), 1e-300)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        mov_v = absa_grid > 1e-12 * scale_v
+        xv = np.where(mov_v, (vmax / np.where(mov_v, absa_grid, 1.0)) ** 2, np.inf).min(axis=1)
+        # Rows of step k: |ra u + rb x_k| <= rl.
+        ra = np.concatenate([a[:-1], a[1:] + 2.0 * delta * b[1:]], axis=1)   # (N, 2 dof)
+        rb = np.concatenate([b[:-1], b[1:]], axis=1)
+        rl = np.concatenate([amax, amax])
+        absa = np.abs(ra)
+        moving = absa > 1e-12 * max(float(absa.max()), 1e-300)
+        absb = np.abs(rb)
+        # Rows with ra = 0: |rb| x <= rl.
+        xz = np.where(~moving & (absb > 0), rl / np.where(absb > 0, absb, 1.0), np.inf).min(axis=1)
+        # Bounds on u: alpha x + c <= u <= alpha x + d.
+        alpha = np.where(moving, -rb / np.where(moving, ra, 1.0), 0.0)
+        c = np.where(moving, -rl / np.where(moving, absa, 1.0), -np.inf)
+        d = np.where(moving, rl / np.where(moving, absa, 1.0), np.inf)
+        # Pairs (lower j, upper m): (alpha_j - alpha_m) x <= d_m - c_j.
+        diff = alpha[:, :, None] - alpha[:, None, :]
+        rhs = d[:, None, :] - c[:, :, None]
+        pair_ok = moving[:, :, None] & moving[:, None, :] & (diff > 0)
+        xp = np.where(pair_ok, rhs / np.where(pair_ok, diff, 1.0), np.inf).min(axis=(1, 2))
+        # Lower bound u >= -x / (2 h) (x_{k+1} >= 0) against the upper bounds.
+        coef = -1.0 / (2.0 * delta) - alpha
+        lo_ok = moving & (coef > 0)
+        xl = np.where(lo_ok, d / np.where(lo_ok, coef, 1.0), np.inf).min(axis=1)
+        static = np.minimum.reduce([xv[:-1], xz, xp, xl, np.full(n, _X_CAP)])
+        # Dynamic bound: alpha_j x + c_j <= (hi_{k+1} - x) / (2 h)
+        #   <=> x (1 + 2 h alpha_j) <= hi_{k+1} - 2 h c_j.
+        den = 1.0 + 2.0 * delta * alpha
+        dyn_ok = moving & (den > 0)
+        A = np.where(dyn_ok, 1.0 / np.where(dyn_ok, den, 1.0), 0.0)
+        B = np.where(dyn_ok, -2.0 * delta * c / np.where(dyn_ok, den, 1.0), np.inf)
+    static = np.maximum(static, 0.0)
+    hi = np.empty(n + 1)
+    hi[n] = 0.0
+    h = 0.0
+    for k in range(n - 1, -1, -1):
+        h = min(float(static[k]), float(np.min(A[k] * h + B[k])))
+        hi[k] = h
+    # Forward pass: greedy largest sddot.
+    x = np.empty(n + 1)
+    x[0] = 0.0
+    xk = 0.0
+    has_rows = moving.any(axis=1)
+    for k in range(n):
+        u = (hi[k + 1] - xk) / (2.0 * delta)
+        if has_rows[k]:
+            u = min(u, float(np.min(alpha[k] * xk + d[k])))
+        xk = min(max(xk + 2.0 * delta * u, 0.0), hi[k + 1])
+        x[k + 1] = xk
+    x[n] = 0.0
+    stuck = (x[:-1] <= 0.0) & (x[1:] <= 0.0)
+    if np.any(stuck):
+        k = int(np.argmax(stuck))
+        raise LimitError(f'path cannot be traversed under the limits: speed forced to zero at s = {k * delta:.6g}')
+    return x
+
+
+def _build_law(s_grid: np.ndarray, x: np.ndarray, smoothing: float) -> _TimeLaw:
+    """Exact piecewise-quadratic s*(t) from x on the grid, plus its integrals."""
+    delta = float(s_grid[1] - s_grid[0])
+    v = np.sqrt(x)
+    dt = 2.0 * delta / (v[:-1] + v[1:])
+    u = (x[1:] - x[:-1]) / (2.0 * delta)
+    t_k = np.concatenate([[0.0], np.cumsum(dt)])
+    s_k = s_grid
+    inc1 = s_k[:-1] * dt + v[:-1] * dt**2 / 2.0 + u * dt**3 / 6.0
+    S1 = np.concatenate([[0.0], np.cumsum(inc1)])
+    inc2 = S1[:-1] * dt + s_k[:-1] * dt**2 / 2.0 + v[:-1] * dt**3 / 6.0 + u * dt**4 / 24.0
+    S2 = np.concatenate([[0.0], np.cumsum(inc2)])
+    tau = 0.5 * smoothing * float(t_k[-1])
+    return _TimeLaw(t_k=t_k, s_k=s_k, v_k=v, u_k=u, S1_k=S1, S2_k=S2, tau=tau)
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """A path with a time law: ``q(t) = path.q(s(t))``, rest-to-rest.
+
+    Attributes:
+        path: the geometric path (unchanged).
+        joint_names: joint names, length dof.
+        duration: total time, s.
+        max_velocity, max_acceleration: limits used, shape (dof,); rad/s (m/s), rad/s^2 (m/s^2).
+        topp_duration: time-optimal (bang-bang, non-smooth) duration along the path, s.
+        min_duration: fastest smooth rest-to-rest duration this module builds, s (>= topp_duration).
+    """
+
+    path: Any
+    joint_names: list[str]
+    duration: float
+    max_velocity: np.ndarray
+    max_acceleration: np.ndarray
+    topp_duration: float
+    min_duration: float
+    _law: _TimeLaw | None = field(repr=False)
+    _law_scale: float = field(repr=False, default=1.0)
+
+    @property
+    def optimality_ratio(self) -> float:
+        """``min_duration / topp_duration`` (1.0 is the non-smooth optimum; nan if stationary)."""
+        if self.topp_duration <= 0.0:
+            return float('nan')
+        return self.min_duration / self.topp_duration
+
+    def s_of_t(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Path parameter and its time derivatives.
+
+        Args:
+            t: times, shape (M,) (or scalar), s; clipped to [0, duration].
+        Returns:
+            (s, sdot, sddot), each (M,); 1, 1/s, 1/s^2.
+        """
+        s, sd, sdd, _ = self._s_all(t)
+        return s, sd, sdd
+
+    def _s_all(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if not np.all(np.isfinite(t)):
+            raise LimitError('times must be finite')
+        if self._law is None:  # stationary path
+            one = (t >= self.duration).astype(float)
+            z = np.zeros_like(t)
+            return one, z, z, z
+        lam = self._law_scale
+        tl = np.where(t >= self.duration, self._law.duration, np.clip(t, 0.0, self.duration) / lam)
+        s, sd, sdd, sddd = self._law.evaluate(tl)
+        return s, sd / lam, sdd / lam**2, sddd / lam**3
+
+    def at_time(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Joint positions, velocities and accelerations at times ``t``.
+
+        Args:
+            t: times, shape (M,), s; clipped to [0, duration].
+        Returns:
+            (q, dq, ddq), each (M, dof); rad (m), rad/s (m/s), rad/s^2 (m/s^2).
+        """
+        s, sd, sdd = self.s_of_t(t)
+        q, q1, q2, _ = self.path.evaluate(s)
+        q1 = np.asarray(q1)
+        return np.asarray(q), q1 * sd[:, None], q1 * sdd[:, None] + np.asarray(q2) * (sd**2)[:, None]
+
+    def jerk_at_time(self, t: Any) -> np.ndarray:
+        """Joint jerk d3q/dt3 at times ``t`` (M,) -> (M, dof); rad/s^3 (m/s^3)."""
+        s, sd, sdd, sddd = self._s_all(t)
+        _, q1, q2, q3 = self.path.evaluate(s)
+        return (np.asarray(q1) * sddd[:, None] + 3.0 * np.asarray(q2) * (sd * sdd)[:, None]
+                + np.asarray(q3) * (sd**3)[:, None])
+
+    def times(self, dt: float) -> np.ndarray:
+        """Sample times 0, dt, 2 dt, ..., duration (last exactly at duration), s."""
+        try:
+            dt = float(dt)
+        except (TypeError, ValueError) as err:
+            raise LimitError(f'dt must be a number, got {dt!r}') from err
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise LimitError(f'dt must be positive and finite, got {dt!r}')
+        T = self.duration
+        if T <= 0.0:
+            return np.zeros(1)
+        n = int(math.floor(T / dt + 1e-9))
+        t = np.arange(n + 1, dtype=float) * dt
+        if T - t[-1] <= max(1e-9, 1e-6 * dt):
+            t[-1] = T
+            if t.size > 1 and t[-1] <= t[-2]:
+                t = t[:-1]
+                t[-1] = T
+        else:
+            t = np.append(t, T)
+        return t
+
+    def sample(self, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Uniform samples in time.
+
+        Args:
+            dt: time step, s (> 0).
+        Returns:
+            (t, q, dq, ddq): t (M,) from 0 to duration inclusive, the last sample exactly at
+            ``duration`` (so the last step may be shorter than dt); the others (M, dof).
+        Raises:
+            LimitError: dt not positive and finite.
+        """
+        t = self.times(dt)
+        q, dq, ddq = self.at_time(t)
+        return t, q, dq, ddq
+
+    def max_limit_ratios(self, samples: int = 4001) -> tuple[float, float]:
+        """Largest |dq|/vmax and |ddq|/amax over ``samples`` uniform times (diagnostic)."""
+        t = np.linspace(0.0, self.duration, max(int(samples), 2))
+        _, dq, ddq = self.at_time(t)
+        return (float(np.max(np.abs(dq) / self.max_velocity)),
+                float(np.max(np.abs(ddq) / self.max_acceleration)))
+
+
+def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration: Any = None,
+                      duration: float | None = None, *, grid_points: int = 1000,
+                      smoothing: float = 0.05, check_samples: int | None = None) -> Trajectory:
+    """Fastest smooth rest-to-rest time law along ``path`` within joint limits.
+
+    Args:
+        path: object with ``evaluate(s) -> (q, q', q'', q''')`` (each (len(s), dof), w.r.t. s in
+            [0, 1]), ``joint_names`` and ``robot`` (``robot.max_velocity`` and
+            ``robot.max_acceleration`` (dof,) are the default limits).
+        max_velocity: per-joint limit (dof,) or scalar, rad/s (m/s for prismatic); None: robot's.
+        max_acceleration: per-joint limit (dof,) or scalar, rad/s^2 (m/s^2); None: robot's.
+        duration: if given, the law is stretched uniformly to exactly this duration, s.
+        grid_points: number of s intervals of the time-optimal (TOPP) pass.
+        smoothing: acceleration-ramp time of the smoothing as a fraction of the TOPP duration,
+            in (0, 1]; the smooth law lasts about ``(1 + smoothing) * topp_duration``.
+        check_samples: time samples of the dense limit check (default max(4000, 4 grid_points)).
+    Returns:
+        A :class:`Trajectory`; zero velocity and acceleration at both ends, within the limits.
+    Raises:
+        LimitError: invalid limits (the message names the joint), duration shorter than the
+            minimum (the message gives it), or a path that cannot be traversed.
+    """
+    joint_names = [str(n) for n in getattr(path, 'joint_names', [])]
+    robot = getattr(path, 'robot', None)
+    q0 = np.asarray(path.evaluate(np.array([0.0]))[0], dtype=float)
+    dof = q0.shape[-1]
+    if len(joint_names) != dof:
+        joint_names = joint_names or [f'joint{i + 1}' for i in range(dof)]
+        if len(joint_names) != dof:
+            raise LimitError(f'path has {len(joint_names)} joint names but {dof} joints')
+    vmax = _limits(max_velocity, getattr(robot, 'max_velocity', None), dof, joint_names, 'max_velocity')
+    amax = _limits(max_acceleration, getattr(robot, 'max_acceleration', None), dof, joint_names,
+                   'max_acceleration')
+    grid_points = int(grid_points)
+    if grid_points < 2:
+        raise LimitError(f'grid_points must be >= 2, got {grid_points}')
+    if not (0.0 < float(smoothing) <= 1.0):
+        raise LimitError(f'smoothing must be in (0, 1], got {smoothing!r}')
+    if duration is not None:
+        try:
+            duration = float(duration)
+        except (TypeError, ValueError) as err:
+            raise LimitError(f'duration must be a number, got {duration!r}') from err
+        if not (math.isfinite(duration) and duration >= 0.0):
+            raise LimitError(f'duration must be finite and >= 0, got {duration!r}')
+
+    s_grid = np.linspace(0.0, 1.0, grid_points + 1)
+    _, a, b, _ = path.evaluate(s_grid)
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise LimitError('path derivatives contain NaN or inf')
+    if float(np.max(np.abs(a))) == 0.0:
+        # Stationary path: nothing moves; any duration (default 0) is feasible.
+        T = 0.0 if duration is None else duration
+        return Trajectory(path=path, joint_names=joint_names, duration=T, max_velocity=vmax,
+                          max_acceleration=amax, topp_duration=0.0, min_duration=0.0, _law=None)
+
+    x = _topp(a, b, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN))
+    law = _build_law(s_grid, x, float(smoothing))
+    t_star = law.t_star
+
+    # Dense check of the smoothed law against the full limits; stretch time if needed.
+    m = int(check_samples) if check_samples is not None else max(4000, 4 * grid_points)
+    t_chk = np.linspace(0.0, law.duration, max(m, 10))
+    s, sd, sdd, _ = law.evaluate(t_chk)
+    _, q1, q2, _ = path.evaluate(s)
+    q1 = np.asarray(q1, dtype=float)
+    q2 = np.asarray(q2, dtype=float)
+    rv = float(np.max(np.abs(q1 * sd[:, None]) / vmax))
+    ra = float(np.max(np.abs(q1 * sdd[:, None] + q2 * (sd**2)[:, None]) / amax))
+    target = 1.0 - CHECK_MARGIN
+    lam = max(1.0, rv / target, math.sqrt(ra / target))
+    t_min = lam * law.duration
+    if duration is None:
+        T = t_min
+    else:
+        if duration < t_min * (1.0 - 1e-12):
+            raise LimitError(
+                f'duration {duration:.6g} s is shorter than the minimum {t_min:.6g} s for these limits')
+        T = duration
+    return Trajectory(path=path, joint_names=joint_names, duration=float(T), max_velocity=vmax,
+                      max_acceleration=amax, topp_duration=float(t_star), min_duration=float(t_min),
+                      _law=law, _law_scale=float(T / law.duration))
+
+
+__all__ = ['Trajectory', 'time_parameterize']

@@ -1,0 +1,275 @@
+"""Time parameterization (geodesic_planner.timing) on synthetic polynomial paths.
+
+Oracles: the analytic bang-bang time of a straight joint line, and a time-optimal profile solved
+independently as a linear program (scipy HiGHS) on its own grid.
+"""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from numpy.polynomial import polynomial as P
+
+from geodesic_planner.errors import GeodesicPlannerError, LimitError
+from geodesic_planner.timing import Trajectory, time_parameterize
+
+#: Our smooth law may be at most this much slower than the (non-smooth) time-optimal law.
+OPTIMALITY_FACTOR = 1.10
+
+
+class PolyPath:
+    """q(s) = sum_k c_k s^k per joint; exact derivatives."""
+
+    def __init__(self, coeffs, vmax=1.0, amax=2.0):
+        self.c = np.asarray(coeffs, dtype=float)  # (degree + 1, dof)
+        dof = self.c.shape[1]
+        self.joint_names = [f'j{i + 1}' for i in range(dof)]
+        self.robot = SimpleNamespace(max_velocity=np.broadcast_to(vmax, (dof,)).astype(float),
+                                     max_acceleration=np.broadcast_to(amax, (dof,)).astype(float))
+
+    def evaluate(self, s):
+        s = np.asarray(s, dtype=float)
+        assert s.ndim == 1 and s.min() >= 0.0 and s.max() <= 1.0
+        out, c = [], self.c
+        for _ in range(4):
+            out.append(P.polyval(s, c).T.reshape(s.size, -1))
+            c = P.polyder(c) if c.shape[0] > 1 else np.zeros_like(c[:1])
+        return tuple(out)
+
+
+def curved(vmax=(1.0, 1.5, 0.8), amax=3.0):
+    return PolyPath([[0.1, 0.0, 0.0], [2.0, 1.0, -1.0], [-1.0, 3.0, 0.5], [0.5, -2.0, 1.0]], vmax, amax)
+
+
+def check_limits(traj: Trajectory, n: int = 20001, rtol: float = 1e-9) -> tuple[float, float]:
+    t = np.linspace(0.0, traj.duration, n)
+    _, dq, ddq = traj.at_time(t)
+    rv = np.max(np.abs(dq) / traj.max_velocity)
+    ra = np.max(np.abs(ddq) / traj.max_acceleration)
+    assert rv <= 1.0 + rtol, f'velocity limit exceeded by factor {rv}'
+    assert ra <= 1.0 + rtol, f'acceleration limit exceeded by factor {ra}'
+    return float(rv), float(ra)
+
+
+def lp_topp_duration(path, vmax, amax, n=400) -> float:
+    """Time-optimal duration by a linear program in (x = sdot^2, u = sddot) on an n-interval grid.
+
+    Maximises sum(x) subject to x_{k+1} = x_k + 2 h u_k, |q' u + q'' x| <= amax and
+    |q'|^2 x <= vmax^2 at the grid points, x_0 = x_n = 0; the maximal profile is the time-optimal one.
+    """
+    from scipy.optimize import linprog
+    from scipy.sparse import lil_matrix
+
+    h = 1.0 / n
+    s = np.linspace(0.0, 1.0, n + 1)
+    _, a, b, _ = path.evaluate(s)
+    dof = a.shape[1]
+    nx, nu = n + 1, n
+    A_eq = lil_matrix((n + 2, nx + nu))
+    b_eq = np.zeros(n + 2)
+    for k in range(n):
+        A_eq[k, k + 1] = 1.0
+        A_eq[k, k] = -1.0
+        A_eq[k, nx + k] = -2.0 * h
+    A_eq[n, 0] = 1.0
+    A_eq[n + 1, n] = 1.0
+    A_ub = lil_matrix((2 * n * dof, nx + nu))
+    b_ub = np.zeros(2 * n * dof)
+    r = 0
+    for k in range(n):
+        for i in range(dof):
+            for sign in (1.0, -1.0):
+                A_ub[r, nx + k] = sign * a[k, i]
+                A_ub[r, k] = sign * b[k, i]
+                b_ub[r] = amax[i]
+                r += 1
+    with np.errstate(divide='ignore'):
+        xv = np.min(np.where(np.abs(a) > 0, (vmax / np.abs(a)) ** 2, np.inf), axis=1)
+    bounds = [(0.0, float(min(v, 1e9))) for v in xv] + [(None, None)] * nu
+    c = np.concatenate([-np.ones(nx), np.zeros(nu)])
+    res = linprog(c, A_ub=A_ub.tocsr(), b_ub=b_ub, A_eq=A_eq.tocsr(), b_eq=b_eq, bounds=bounds,
+                  method='highs')
+    assert res.status == 0, res.message
+    x = np.maximum(res.x[:nx], 0.0)
+    return float(np.sum(2.0 * h / (np.sqrt(x[:-1]) + np.sqrt(x[1:]))))
+
+
+@pytest.mark.parametrize('length, vmax, amax', [(1.0, 1.0, 2.0), (0.2, 1.0, 2.0), (3.0, 0.5, 0.4)])
+def test_straight_line_against_bang_bang_oracle(length, vmax, amax):
+    # q(s) = q0 + s * length * dir; joint 2 moves half as far, so joint 1 limits.
+    path = PolyPath([[0.3, -0.2], [length, -0.5 * length]], vmax, amax)
+    traj = time_parameterize(path)
+    if length >= vmax**2 / amax:
+        t_opt = length / vmax + vmax / amax          # trapezoid
+    else:
+        t_opt = 2.0 * np.sqrt(length / amax)         # triangle
+    assert traj.topp_duration == pytest.approx(t_opt, rel=3e-3)
+    assert t_opt * (1 - 1e-6) <= traj.duration <= OPTIMALITY_FACTOR * t_opt
+    rv, ra = check_limits(traj)
+    assert max(rv, ra) > 0.97  # a limit is actually reached: not wastefully slow
+
+
+def test_curved_path_limits_hold_on_dense_grid_and_ends_at_rest():
+    path = curved()
+    traj = time_parameterize(path)
+    check_limits(traj)
+    q_end, dq_end, ddq_end = traj.at_time(np.array([0.0, traj.duration]))
+    q_ref = path.evaluate(np.array([0.0, 1.0]))[0]
+    np.testing.assert_allclose(q_end, q_ref, atol=1e-12)
+    np.testing.assert_array_equal(dq_end, 0.0)
+    np.testing.assert_array_equal(ddq_end, 0.0)
+    # Rest is approached smoothly: acceleration tends to zero near the ends (not a jump).
+    eps = 1e-4 * traj.duration
+    _, dq_near, ddq_near = traj.at_time(np.array([eps, traj.duration - eps]))
+    assert np.max(np.abs(ddq_near) / traj.max_acceleration) < 0.05
+    assert np.max(np.abs(dq_near) / traj.max_velocity) < 1e-3
+
+
+def test_acceleration_is_continuous():
+    traj = time_parameterize(curved())
+    t = np.linspace(0.0, traj.duration, 200001)
+    _, _, ddq = traj.at_time(t)
+    jumps = np.max(np.abs(np.diff(ddq, axis=0)) / traj.max_acceleration)
+    assert jumps < 0.01  # a bang-bang (TOPP) law would jump by about 2 amax here
+    jerk = traj.jerk_at_time(t)
+    assert np.all(np.isfinite(jerk))
+
+
+@pytest.mark.parametrize('vmax, amax', [((1.0, 1.5, 0.8), 3.0), (5.0, 0.7), ((0.3, 2.0, 2.0), (4.0, 1.0, 9.0))])
+def test_duration_close_to_independent_time_optimum(vmax, amax):
+    path = curved(vmax, amax)
+    traj = time_parameterize(path)
+    t_lp = lp_topp_duration(path, traj.max_velocity, traj.max_acceleration)
+    ratio = traj.duration / t_lp
+    assert 0.99 <= ratio <= OPTIMALITY_FACTOR, ratio
+    assert traj.topp_duration == pytest.approx(t_lp, rel=0.01)
+    assert traj.optimality_ratio == pytest.approx(traj.min_duration / traj.topp_duration)
+    check_limits(traj)
+
+
+def test_chain_rule_and_path_unchanged():
+    path = curved()
+    traj = time_parameterize(path)
+    t = np.linspace(0.0, traj.duration, 4001)
+    s, sd, sdd = traj.s_of_t(t)
+    q, dq, ddq = traj.at_time(t)
+    np.testing.assert_allclose(q, path.evaluate(s)[0], atol=1e-14)
+    assert np.all(np.diff(s) >= 0.0) and s[0] == 0.0 and s[-1] == 1.0
+    dt = t[1] - t[0]
+    # Finite differences of the sampled law and of q(t) (test-only check of the analytic values).
+    np.testing.assert_allclose((s[2:] - s[:-2]) / (2 * dt), sd[1:-1], atol=1e-5 * sd.max())
+    np.testing.assert_allclose((sd[2:] - sd[:-2]) / (2 * dt), sdd[1:-1], atol=2e-3 * np.abs(sdd).max())
+    np.testing.assert_allclose((q[2:] - q[:-2]) / (2 * dt), dq[1:-1], atol=1e-5 * np.abs(dq).max())
+    np.testing.assert_allclose((dq[2:] - dq[:-2]) / (2 * dt), ddq[1:-1], atol=2e-3 * np.abs(ddq).max())
+
+
+def test_duration_stretch_is_exact_and_uniform():
+    path = curved()
+    fast = time_parameterize(path)
+    lam = 1.7
+    slow = time_parameterize(path, duration=lam * fast.duration)
+    assert slow.duration == lam * fast.duration
+    t = np.linspace(0.0, fast.duration, 501)
+    q0, dq0, ddq0 = fast.at_time(t)
+    q1, dq1, ddq1 = slow.at_time(lam * t)
+    np.testing.assert_allclose(q1, q0, atol=1e-12)
+    np.testing.assert_allclose(dq1, dq0 / lam, atol=1e-12)
+    np.testing.assert_allclose(ddq1, ddq0 / lam**2, atol=1e-10)
+    ts, qs, _, _ = slow.sample(0.01)
+    assert ts[-1] == slow.duration
+    np.testing.assert_allclose(qs[-1], path.evaluate(np.array([1.0]))[0][0], atol=1e-12)
+    check_limits(slow)
+    # Exactly the minimum is accepted.
+    assert time_parameterize(path, duration=fast.duration).duration == fast.duration
+
+
+def test_duration_shorter_than_feasible_names_the_minimum():
+    path = curved()
+    t_min = time_parameterize(path).duration
+    with pytest.raises(LimitError, match=r'shorter than the minimum') as err:
+        time_parameterize(path, duration=0.5 * t_min)
+    assert f'{t_min:.6g}' in str(err.value)
+
+
+def test_scalar_limits_broadcast():
+    path = curved()
+    a = time_parameterize(path, 2.0, 3.0)
+    b = time_parameterize(path, [2.0, 2.0, 2.0], np.array([3.0, 3.0, 3.0]))
+    np.testing.assert_array_equal(a.max_velocity, [2.0, 2.0, 2.0])
+    np.testing.assert_array_equal(a.max_acceleration, [3.0, 3.0, 3.0])
+    assert a.duration == b.duration
+
+
+def test_robot_limits_are_the_default():
+    path = curved(vmax=(0.4, 0.5, 0.6), amax=(1.0, 2.0, 3.0))
+    traj = time_parameterize(path)
+    np.testing.assert_array_equal(traj.max_velocity, [0.4, 0.5, 0.6])
+    np.testing.assert_array_equal(traj.max_acceleration, [1.0, 2.0, 3.0])
+    # Halving all velocity and acceleration limits at least slows the motion down.
+    assert time_parameterize(path, [0.2, 0.25, 0.3], [0.5, 1.0, 1.5]).duration > traj.duration
+
+
+@pytest.mark.parametrize('vmax, amax, joint', [
+    ([1.0, 0.0, 1.0], 1.0, 'j2'),
+    ([1.0, 1.0, -2.0], 1.0, 'j3'),
+    (1.0, [np.nan, 1.0, 1.0], 'j1'),
+    (1.0, [1.0, np.inf, 1.0], 'j2'),
+    (-1.0, 1.0, 'j1'),
+])
+def test_invalid_limits_name_the_joint(vmax, amax, joint):
+    with pytest.raises(LimitError, match=f"joint '{joint}'"):
+        time_parameterize(curved(), vmax, amax)
+
+
+def test_wrong_number_of_limits_and_bad_arguments():
+    with pytest.raises(LimitError, match='one per joint'):
+        time_parameterize(curved(), [1.0, 1.0], 1.0)
+    with pytest.raises(LimitError, match='duration'):
+        time_parameterize(curved(), 1.0, 1.0, duration=float('nan'))
+    traj = time_parameterize(curved())
+    for bad in (0.0, -0.1, float('inf'), float('nan')):
+        with pytest.raises(LimitError, match='dt'):
+            traj.sample(bad)
+    assert issubclass(LimitError, GeodesicPlannerError)
+
+
+def test_sample_grid_uniform_with_last_sample_at_duration():
+    traj = time_parameterize(curved())
+    dt = 0.013
+    t, q, dq, ddq = traj.sample(dt)
+    assert t[0] == 0.0 and t[-1] == traj.duration
+    steps = np.diff(t)
+    np.testing.assert_allclose(steps[:-1], dt, rtol=1e-12)
+    assert 0.0 < steps[-1] <= dt + 1e-12
+    assert q.shape == dq.shape == ddq.shape == (t.size, 3)
+    # A dt that divides the duration gives no tiny extra step.
+    d2 = time_parameterize(curved(), duration=2.6)
+    t2 = d2.sample(0.1)[0]
+    assert t2.size == 27 and t2[-1] == 2.6 and np.all(np.diff(t2) > 0.099)
+
+
+def test_stationary_path():
+    path = PolyPath([[0.5, -1.0]], 1.0, 1.0)
+    traj = time_parameterize(path)
+    assert traj.duration == 0.0
+    t, q, dq, ddq = traj.sample(0.01)
+    assert t.tolist() == [0.0]
+    np.testing.assert_allclose(q, [[0.5, -1.0]])
+    held = time_parameterize(path, duration=2.0)
+    t, q, dq, _ = held.sample(0.5)
+    np.testing.assert_allclose(q, np.tile([0.5, -1.0], (t.size, 1)))
+    np.testing.assert_array_equal(dq, 0.0)
+
+
+def test_path_with_a_joint_that_does_not_move_and_a_turning_point():
+    # Joint 1 goes out and back (q' = 0 at s = 0.5), joint 2 never moves.
+    path = PolyPath([[0.0, 0.2], [2.0, 0.0], [-2.0, 0.0]], 1.0, 2.0)
+    traj = time_parameterize(path)
+    check_limits(traj)
+    q = traj.sample(0.001)[1]
+    np.testing.assert_allclose(q[:, 1], 0.2)
+    assert q[:, 0].max() == pytest.approx(0.5, abs=1e-6)
+    # Independent optimum: out 0.5 rad and back, each a triangle/trapezoid at vmax 1, amax 2.
+    t_half = 0.5 / 1.0 + 1.0 / 2.0
+    assert 2 * t_half * (1 - 1e-6) <= traj.duration <= OPTIMALITY_FACTOR * 2 * t_half
