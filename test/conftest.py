@@ -1,0 +1,65 @@
+"""Suite-wide pytest configuration: markers, --run-slow, and the network-namespace guard.
+
+Markers:
+    ros:    needs rclpy (skipped with a reason when rclpy cannot be imported). These tests start
+            real DDS participants, so they refuse to run outside a loopback-only network namespace
+            (``bash scripts/test.sh`` provides one) unless ``GEODESIC_PLANNER_NETNS=off``.
+    slow:   long runs; skipped unless ``--run-slow`` or ``GP_RUN_SLOW=1``.
+    linter: style and consistency checks of the source tree.
+"""
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from geodesic_planner import netns
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption('--run-slow', action='store_true', default=False,
+                     help='also run tests marked slow (or set GP_RUN_SLOW=1)')
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        'markers', 'ros: needs rclpy and real DDS; runs only inside the loopback network namespace')
+    config.addinivalue_line(
+        'markers', 'slow: long run; skipped unless --run-slow or GP_RUN_SLOW=1')
+    config.addinivalue_line('markers', 'linter: style/consistency checks of the source tree')
+
+
+def _rclpy_import_error() -> str | None:
+    try:
+        import rclpy  # noqa: F401
+    except Exception as exc:  # ImportError, or a broken native library (OSError)
+        return f'{type(exc).__name__}: {exc}'
+    return None
+
+
+def run_slow_enabled(config: pytest.Config) -> bool:
+    """True when slow tests were asked for (--run-slow or GP_RUN_SLOW=1)."""
+    return bool(config.getoption('--run-slow')) or os.environ.get('GP_RUN_SLOW', '') == '1'
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if not run_slow_enabled(config):
+        skip_slow = pytest.mark.skip(reason='slow: run with --run-slow or GP_RUN_SLOW=1')
+        for item in items:
+            if 'slow' in item.keywords:
+                item.add_marker(skip_slow)
+
+    ros_items = [item for item in items
+                 if item.get_closest_marker('ros') is not None
+                 and item.get_closest_marker('skip') is None]
+    if not ros_items:
+        return
+    error = _rclpy_import_error()
+    if error is not None:
+        skip_ros = pytest.mark.skip(reason=f'ros: rclpy cannot be imported ({error})')
+        for item in ros_items:
+            item.add_marker(skip_ros)
+        return
+    problem = netns.isolation_problem()
+    if problem is not None:
+        pytest.exit(f'refusing to run {len(ros_items)} ros test(s): {problem}', returncode=4)
