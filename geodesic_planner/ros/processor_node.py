@@ -1,0 +1,366 @@
+"""ROS 2 node ``trajectory_processor``: resample and slow down planned trajectories, record a bag.
+
+Interface (``~`` = ``/trajectory_processor`` by default):
+
+* subscription ``input_topic`` (trajectory_msgs/JointTrajectory, default
+  ``/geodesic_planner/joint_trajectory``), reliable, volatile, depth 10, ``raw=True``: the exact
+  CDR bytes are recorded first, then decoded with ``rclpy.serialization.deserialize_message``.
+* publisher ``output_topic`` (default ``~/joint_trajectory``, remap it to a controller),
+  reliable, volatile, depth 10: the input resampled every ``sample_period`` s and slowed down by
+  ``velocity_scaling`` f (times / f, velocities * f, accelerations * f**2, same path), positions,
+  velocities and accelerations at every point, last point exactly at the (scaled) end; header
+  copied from the input. See :mod:`geodesic_planner.resample` for the interpolation.
+* an invalid input (what joint_trajectory_controller would reject: empty/duplicate joint names,
+  no points, wrong sizes, non-finite values, non-increasing ``time_from_start``) is logged as an
+  error naming the cause, recorded as received, and not published. The node keeps going.
+
+Parameters: ``input_topic``, ``output_topic``, ``bag_path``, ``storage``, ``record_topics``
+are read-only (fixed at start); ``sample_period`` (s, > 0) and ``velocity_scaling`` ((0, 1])
+may be changed at run time, invalid values are rejected with a reason.
+
+Recording (``bag_path`` non-empty): a new rosbag2 directory per run, never an existing one
+(:func:`geodesic_planner.bag.new_bag_path`: an existing non-empty ``bag_path`` gets a timestamped
+bag inside or next to it; the log says where). ``record_topics`` (default: input, output,
+``/joint_states``) may name other topics as ``name`` (type taken from the ROS graph once a
+publisher appears) or ``name:pkg/msg/Type``. Input and other topics are recorded as the raw bytes
+received; the node's own output as the exact CDR of the published message (rosbags
+serialisation; ``serialize_message`` would pad empty arrays). Timestamps are receive/publish
+times of the node's clock. Data reach the file at least every 0.5 s (see
+:mod:`geodesic_planner.bag`): after SIGKILL ``geodesic-bag repair`` recovers all but the last
+0.5 s. On SIGINT/SIGTERM the node finishes the messages already received, closes the bag
+(metadata written) and exits with 0.
+
+Executor model: one SingleThreadedExecutor, spun by ``spin_once`` in the main thread; callbacks
+(input, recorded topics, parameter services) therefore never run concurrently and the recorder
+sees one writer (it is thread-safe anyway for its own flush thread). Signals only set a flag.
+"""
+from __future__ import annotations
+
+import importlib
+import math
+import signal
+import threading
+import time
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import NameValidationException, ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from rclpy.signals import SignalHandlerOptions
+from trajectory_msgs.msg import JointTrajectory
+
+from ..bag import JOINT_STATE, JOINT_TRAJECTORY, STORAGES, BagRecorder, make_typestore, new_bag_path, to_cdr
+from ..errors import BagError, GeodesicPlannerError, RequestError
+from ..resample import process_trajectory
+from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory
+
+NODE_NAME = 'trajectory_processor'
+DEFAULT_INPUT_TOPIC = '/geodesic_planner/joint_trajectory'
+DEFAULT_OUTPUT_TOPIC = '~/joint_trajectory'
+JOINT_STATES_TOPIC = '/joint_states'
+KNOWN_TYPES = {JOINT_STATES_TOPIC: JOINT_STATE}
+DRAIN_TIMEOUT = 2.0  # s spent at shutdown handling messages already received
+
+_STRING, _DOUBLE, _STRING_ARRAY = 'string', 'double', 'string array'
+#: name -> (default, kind, read_only, description)
+PARAMETERS: dict[str, tuple[Any, str, bool, str]] = {
+    'input_topic': (DEFAULT_INPUT_TOPIC, _STRING, True,
+                    'JointTrajectory topic to process (reliable, depth 10)'),
+    'output_topic': (DEFAULT_OUTPUT_TOPIC, _STRING, True,
+                     'where the processed JointTrajectory is published (remap to a controller)'),
+    'sample_period': (0.01, _DOUBLE, False, 'output point spacing in s (> 0)'),
+    'velocity_scaling': (1.0, _DOUBLE, False,
+                         'speed factor f in (0, 1]: durations / f, velocities * f, accelerations * f^2'),
+    'bag_path': ('', _STRING, True,
+                 'new bag directory for this run (existing non-empty: a timestamped one inside or '
+                 'next to it); empty disables recording'),
+    'storage': ('mcap', _STRING, True, 'bag storage: mcap or sqlite3'),
+    'record_topics': (None, _STRING_ARRAY, True,
+                      'topics to record ("name" or "name:pkg/msg/Type"); default: input, output, '
+                      '/joint_states'),
+}
+
+
+def _qos(reliability: ReliabilityPolicy = ReliabilityPolicy.RELIABLE) -> QoSProfile:
+    return QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=reliability,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def check_parameter(name: str, value: Any) -> str | None:  # noqa: ANN401
+    """Reason why ``value`` is not acceptable for parameter ``name`` (None: acceptable)."""
+    if name in ('sample_period', 'velocity_scaling'):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return f'{name} must be a number, got {value!r}'
+        x = float(value)
+        if name == 'sample_period' and not (math.isfinite(x) and x > 0.0):
+            return f'sample_period must be finite and > 0 s, got {value!r}'
+        if name == 'velocity_scaling' and not (math.isfinite(x) and 0.0 < x <= 1.0):
+            return f'velocity_scaling must be in (0, 1], got {value!r}'
+    elif name == 'storage':
+        if value not in STORAGES:
+            return f'storage must be one of {", ".join(STORAGES)}, got {value!r}'
+    elif name in ('input_topic', 'output_topic'):
+        if not isinstance(value, str) or not value:
+            return f'{name} must be a non-empty topic name, got {value!r}'
+    elif name == 'bag_path':
+        if not isinstance(value, str):
+            return f'bag_path must be a string, got {value!r}'
+    elif name == 'record_topics':
+        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) and v.strip(':') for v in value):
+            return f'record_topics must be a list of topic names, got {value!r}'
+    return None
+
+
+class TrajectoryProcessorNode(Node):
+    """The ``trajectory_processor`` node (see the module docstring).
+
+    Raises:
+        RequestError: invalid parameter values or topic names at start.
+        BagError: the bag cannot be created.
+    """
+
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+        super().__init__(NODE_NAME, **kwargs)
+        # Registered before declaring: initial overrides (-p ...) are validated too.
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        for name, (default, kind, read_only, description) in PARAMETERS.items():
+            descriptor = ParameterDescriptor(description=description, read_only=read_only,
+                                             additional_constraints=kind)
+            if name == 'record_topics':
+                continue
+            if kind == _DOUBLE:
+                descriptor.dynamic_typing = True  # accept -p velocity_scaling:=1 (an integer)
+            self.declare_parameter(name, default, descriptor)
+        self._typestore = make_typestore()
+        self._lock = threading.Lock()
+        self.received = 0
+        self.published = 0
+        self.rejected = 0
+        self.callbacks = 0
+
+        try:
+            self.input_sub = self.create_subscription(
+                JointTrajectory, self.get_parameter('input_topic').value, self._on_input, _qos(), raw=True)
+            self.output_pub = self.create_publisher(
+                JointTrajectory, self.get_parameter('output_topic').value, _qos())
+        except (ValueError, TypeError, NameValidationException) as err:
+            msg = f'invalid topic name: {err}'
+            raise RequestError(msg) from err
+        self.input_topic = self.input_sub.topic_name
+        self.output_topic = self.output_pub.topic_name
+
+        default_record = [self.input_topic, self.output_topic, JOINT_STATES_TOPIC]
+        descriptor = ParameterDescriptor(description=PARAMETERS['record_topics'][3], read_only=True,
+                                         additional_constraints=_STRING_ARRAY, dynamic_typing=True)
+        self.declare_parameter('record_topics', default_record, descriptor)
+
+        self.recorder: BagRecorder | None = None
+        self._extra_subs: dict[str, Any] = {}
+        self._pending_types: list[str] = []
+        self._discovery_timer = None
+        if self.get_parameter('bag_path').value:
+            self._start_recording()
+        self.get_logger().info(
+            f'processing {self.input_topic} -> {self.output_topic}: sample_period '
+            f'{float(self.get_parameter("sample_period").value):g} s, velocity_scaling '
+            f'{float(self.get_parameter("velocity_scaling").value):g}')
+
+    # ------------------------------------------------------------------ parameters
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        for p in params:
+            reason = check_parameter(p.name, p.value)
+            if reason is not None:
+                self.get_logger().warning(f'rejected parameter {p.name}: {reason}')
+                return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    # ------------------------------------------------------------------ recording
+    def _resolve(self, topic: str) -> str:
+        try:
+            return self.resolve_topic_name(topic)
+        except (NameValidationException, ValueError, RuntimeError) as err:
+            msg = f'invalid topic name in record_topics: {topic!r} ({err})'
+            raise RequestError(msg) from err
+
+    def _start_recording(self) -> None:
+        base = self.get_parameter('bag_path').value
+        storage = self.get_parameter('storage').value
+        path = new_bag_path(base, prefix=NODE_NAME)
+        topics: dict[str, str] = {}
+        extra: dict[str, str] = {}
+        for entry in self.get_parameter('record_topics').value:
+            name, _, msgtype = entry.partition(':')
+            topic = self._resolve(name)
+            if topic in (self.input_topic, self.output_topic):
+                if msgtype and msgtype != JOINT_TRAJECTORY:
+                    msg = f'record_topics: {topic} is a {JOINT_TRAJECTORY} topic, not {msgtype}'
+                    raise RequestError(msg)
+                topics[topic] = JOINT_TRAJECTORY
+            elif msgtype or topic in KNOWN_TYPES:
+                extra[topic] = msgtype or KNOWN_TYPES[topic]
+            else:
+                self._pending_types.append(topic)
+        for msgtype in extra.values():
+            if msgtype not in self._typestore.fielddefs:
+                msg = f'record_topics: unknown message type {msgtype!r}'
+                raise RequestError(msg)
+        self.recorder = BagRecorder(path, storage=storage, topics={**topics, **extra},
+                                    typestore=self._typestore)
+        self.recorder.open()
+        where = path if str(path) == str(base) else f'{path} ({base} exists, not overwritten)'
+        self.get_logger().info(f'recording {", ".join(self.recorder.topics)} to {where} [{storage}]')
+        for topic, msgtype in extra.items():
+            self._subscribe_raw(topic, msgtype)
+        if self._pending_types:
+            self.get_logger().info(f'waiting for publishers to learn the types of {", ".join(self._pending_types)}')
+            self._discovery_timer = self.create_timer(0.5, self._discover_types)
+
+    def _subscribe_raw(self, topic: str, msgtype: str) -> None:
+        pkg, _, name = msgtype.partition('/msg/')
+        try:
+            cls = getattr(importlib.import_module(f'{pkg}.msg'), name)
+        except (ImportError, AttributeError) as err:
+            msg = f'cannot record {topic}: message type {msgtype} not available in Python ({err})'
+            raise RequestError(msg) from err
+        # Best available: reliable with reliable publishers, best effort otherwise.
+        self._extra_subs[topic] = self.create_subscription(
+            cls, topic, lambda raw, t=topic: self._record(t, raw), _qos(ReliabilityPolicy.BEST_AVAILABLE),
+            raw=True)
+
+    def _discover_types(self) -> None:
+        types = dict(self.get_topic_names_and_types())
+        for topic in list(self._pending_types):
+            found = types.get(topic)
+            if not found:
+                continue
+            msgtype = found[0]
+            self._pending_types.remove(topic)
+            try:
+                assert self.recorder is not None
+                self.recorder.add_topic(topic, msgtype)
+                self._subscribe_raw(topic, msgtype)
+                self.get_logger().info(f'recording {topic} [{msgtype}]')
+            except GeodesicPlannerError as err:
+                self.get_logger().error(f'cannot record {topic}: {err}')
+        if not self._pending_types and self._discovery_timer is not None:
+            self._discovery_timer.cancel()
+
+    def _now_ns(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    def _record(self, topic: str, data: bytes) -> None:
+        self.callbacks += 1
+        if self.recorder is None or topic not in self.recorder.topics:
+            return
+        try:
+            self.recorder.write(topic, self._now_ns(), data)
+        except BagError as err:
+            self.get_logger().error(f'recording {topic} failed: {err}')
+
+    def close_bag(self) -> None:
+        """Finish the bag (metadata written) and log what it holds. Idempotent."""
+        recorder, self.recorder = self.recorder, None
+        if recorder is None:
+            return
+        try:
+            recorder.close()
+        except BagError as err:
+            self.get_logger().error(str(err))
+            return
+        counts = ', '.join(f'{t}: {n}' for t, n in recorder.counts.items())
+        self.get_logger().info(
+            f'bag closed: {recorder.path} ({sum(recorder.counts.values())} messages; {counts}); '
+            f'received {self.received}, published {self.published}, rejected {self.rejected}')
+
+    # ------------------------------------------------------------------ processing
+    def _on_input(self, raw: bytes) -> None:
+        self.received += 1
+        self._record(self.input_topic, raw)
+        try:
+            msg = deserialize_message(raw, JointTrajectory)
+        except Exception as err:  # noqa: BLE001  (rmw deserialisation errors are not typed)
+            self.rejected += 1
+            self.get_logger().error(f'rejected trajectory: cannot deserialize {len(raw)} bytes: {err}')
+            return
+        problems = validate_joint_trajectory(msg)
+        if problems:
+            self.rejected += 1
+            more = f' (+{len(problems) - 5} more)' if len(problems) > 5 else ''
+            self.get_logger().error(f'rejected trajectory: {"; ".join(problems[:5])}{more}')
+            return
+        f = float(self.get_parameter('velocity_scaling').value)
+        dt = float(self.get_parameter('sample_period').value)
+        arrays = joint_trajectory_to_arrays(msg)
+        try:
+            t, q, dq, ddq = process_trajectory(arrays.t, arrays.positions, arrays.velocities,
+                                               arrays.accelerations, sample_period=dt, velocity_scaling=f)
+        except GeodesicPlannerError as err:
+            self.rejected += 1
+            self.get_logger().error(f'rejected trajectory: {err}')
+            return
+        out = arrays_to_joint_trajectory(arrays.joint_names, t, q, dq, ddq, frame_id=msg.header.frame_id)
+        out.header.stamp = msg.header.stamp
+        self.output_pub.publish(out)
+        self.published += 1
+        if self.recorder is not None and self.output_topic in self.recorder.topics:
+            try:
+                self.recorder.write(self.output_topic, self._now_ns(), to_cdr(out, JOINT_TRAJECTORY, self._typestore))
+            except BagError as err:
+                self.get_logger().error(f'recording {self.output_topic} failed: {err}')
+        span_in = arrays.t[-1] - arrays.t[0]
+        self.get_logger().info(
+            f'received trajectory: {arrays.t.size} points, {span_in:.3g} s -> published {t.size} points, '
+            f'{t[-1] - t[0]:.3g} s (velocity_scaling {f:g}, sample_period {dt:g} s)')
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script ``trajectory_processor_node``: spin until SIGINT/SIGTERM, then close the bag.
+
+    Returns:
+        0 on a clean exit (signal), 1 when the parameters are invalid or the bag cannot be created.
+    """
+    stop = threading.Event()
+
+    def _on_signal(signum: int, frame: object) -> None:
+        stop.set()
+
+    # Our own handlers only set a flag: a signal never interrupts a bag write half-way.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGINT, _on_signal)
+    signal.signal(signal.SIGTERM, _on_signal)
+    node: TrajectoryProcessorNode | None = None
+    rc = 0
+    try:
+        node = TrajectoryProcessorNode()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+        # Handle what was already delivered before closing the bag.
+        deadline = time.monotonic() + DRAIN_TIMEOUT
+        while rclpy.ok() and time.monotonic() < deadline:
+            before = node.received + node.callbacks
+            executor.spin_once(timeout_sec=0.05)
+            if node.received + node.callbacks == before:
+                break
+        node.get_logger().info('shutting down (signal received)')
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (GeodesicPlannerError, ParameterException) as err:
+        rclpy.logging.get_logger(NODE_NAME).error(f'cannot start: {err}')
+        rc = 1
+    finally:
+        if node is not None:
+            node.close_bag()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return rc
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
