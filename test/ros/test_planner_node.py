@@ -1,0 +1,642 @@
+"""The planner node as a user runs it: console script in a subprocess, real DDS, real services.
+
+Every expectation comes from an exact oracle: closed-form IK of the planar 3R arm, the straight
+line with linear phi (3R, metric dx^2 + dy^2 + 2 dphi^2) and line + slerp (6-joint arm) for the
+tool path, forward kinematics for the ends, the robot's limits. No fixed sleeps: every wait has
+an event and a deadline.
+"""
+from __future__ import annotations
+
+import math
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path as FsPath
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip('rclpy')
+
+import rclpy  # noqa: E402
+from geometry_msgs.msg import PoseStamped  # noqa: E402
+from nav_msgs.srv import GetPlan  # noqa: E402
+from numpy.testing import assert_allclose  # noqa: E402
+from rcl_interfaces.msg import Log  # noqa: E402
+from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
+from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
+from rclpy.executors import MultiThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory  # noqa: E402
+from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
+
+from geodesic_planner import load_robot  # noqa: E402
+from geodesic_planner.ros import conversions as cv  # noqa: E402
+from geodesic_planner.transforms import make_transform, so3_exp, so3_log  # noqa: E402
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
+
+NODE_SCRIPT = str(FsPath(sys.executable).with_name('geodesic_planner_node'))
+DEADLINE = 60.0      # s, generous: first plans include imports and caches on a loaded 2-core box
+ERROR, WARN, INFO = 40, 30, 20
+
+
+# =========================================================================== local helpers
+# Minimal process/rclpy helpers (real node in a subprocess, client node spun in a thread).
+
+class NodeProcess:
+    """A node started from its console script; output goes to a log file."""
+
+    def __init__(self, args: list[str], log_path: FsPath) -> None:
+        self.log_path = log_path
+        self._log = open(log_path, 'wb')  # noqa: SIM115 - closed in stop()
+        self.proc = subprocess.Popen([NODE_SCRIPT, *args], stdout=self._log,
+                                     stderr=subprocess.STDOUT)
+
+    def output(self) -> str:
+        if not self._log.closed:
+            self._log.flush()
+        return self.log_path.read_text(errors='replace')
+
+    def stop(self, sig: int = signal.SIGINT, timeout: float = 15.0) -> int:
+        """Send ``sig``, wait, escalate to SIGTERM then SIGKILL; returns the exit code."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+            try:
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.terminate()
+                try:
+                    self.proc.wait(5)
+                except subprocess.TimeoutExpired:
+                    self.proc.kill()
+                    self.proc.wait(5)
+        self._log.close()
+        return self.proc.returncode
+
+
+class Collector:
+    """Keeps every message of a subscription; wait_until(pred) waits on a condition."""
+
+    def __init__(self, node: Any, msg_type: Any, topic: str, qos: QoSProfile | int = 10) -> None:
+        self.msgs: list[Any] = []
+        self._cond = threading.Condition()
+        self.sub = node.create_subscription(msg_type, topic, self._cb, qos)
+
+    def _cb(self, msg: Any) -> None:
+        with self._cond:
+            self.msgs.append(msg)
+            self._cond.notify_all()
+
+    def count(self) -> int:
+        with self._cond:
+            return len(self.msgs)
+
+    def wait_until(self, pred: Callable[[list[Any]], Any], timeout: float = DEADLINE,
+                   what: str = 'condition') -> Any:
+        with self._cond:
+            end = time.monotonic() + timeout
+            while True:
+                res = pred(self.msgs)
+                if res:
+                    return res
+                left = end - time.monotonic()
+                if left <= 0:
+                    raise AssertionError(f'timed out after {timeout} s waiting for {what}')
+                self._cond.wait(left)
+
+    def wait_count(self, n: int, timeout: float = DEADLINE) -> list[Any]:
+        self.wait_until(lambda m: len(m) >= n, timeout, f'{n} messages on {self.sub.topic_name}')
+        with self._cond:
+            return list(self.msgs)
+
+
+class Helper:
+    """An rclpy node in the test process, spun by a background executor."""
+
+    def __init__(self) -> None:
+        rclpy.init()
+        self.node = rclpy.create_node('test_planner_node_helper')
+        self.executor = MultiThreadedExecutor(num_threads=2)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def call(self, client: Any, request: Any, timeout: float = DEADLINE) -> Any:
+        if not client.wait_for_service(timeout_sec=timeout):
+            raise AssertionError(f'service {client.srv_name} not available after {timeout} s')
+        done = threading.Event()
+        future = client.call_async(request)
+        future.add_done_callback(lambda _f: done.set())
+        if not done.wait(timeout):
+            raise AssertionError(f'no response from {client.srv_name} after {timeout} s')
+        return future.result()
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=5)
+        self.node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def wait_for(pred: Callable[[], Any], timeout: float = DEADLINE, what: str = 'condition',
+             poll: float = 0.02) -> Any:
+    """Poll ``pred`` until truthy (used only for graph queries, which have no event)."""
+    end = time.monotonic() + timeout
+    while True:
+        res = pred()
+        if res:
+            return res
+        if time.monotonic() > end:
+            raise AssertionError(f'timed out after {timeout} s waiting for {what}')
+        threading.Event().wait(poll)
+
+
+# =========================================================================== fixtures
+
+@pytest.fixture(scope='module')
+def helper() -> Iterator[Helper]:
+    h = Helper()
+    yield h
+    h.close()
+
+
+class PlannerUnderTest:
+    """A running planner node and the helper-side entities talking to it."""
+
+    def __init__(self, helper: Helper, tmp: FsPath, robot: str, ns: str = '') -> None:
+        args = ['--ros-args', '-p', f'robot:={robot}']
+        if ns:
+            args += ['-r', f'__ns:={ns}']
+        self.name = f'{ns}/geodesic_planner'
+        self.logger = f'{ns.strip("/")}.geodesic_planner' if ns else 'geodesic_planner'
+        self.process = NodeProcess(args, tmp / f'{robot}.log')
+        self.helper = helper
+        node = helper.node
+        self.plan_client = node.create_client(GetPlan, f'{self.name}/plan')
+        self.set_client = node.create_client(SetParameters, f'{self.name}/set_parameters')
+        self.get_client = node.create_client(GetParameters, f'{self.name}/get_parameters')
+        self.traj = Collector(node, JointTrajectory, f'{self.name}/joint_trajectory',
+                              QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+        self.markers = Collector(node, MarkerArray, f'{self.name}/path_markers',
+                                 QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                                            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        if not self.plan_client.wait_for_service(timeout_sec=DEADLINE):
+            raise AssertionError(f'{self.name}/plan not up:\n{self.process.output()}')
+        wait_for(lambda: node.count_publishers(f'{self.name}/joint_trajectory') > 0
+                 and self.traj.sub.get_publisher_count() > 0,
+                 what='trajectory publisher matched')
+
+    def plan(self, request: GetPlan.Request) -> GetPlan.Response:
+        return self.helper.call(self.plan_client, request)
+
+    def set_parameters(self, **values: Any) -> list[Any]:
+        req = SetParameters.Request()
+        req.parameters = [Parameter(k, value=v).to_parameter_msg() for k, v in values.items()]
+        return list(self.helper.call(self.set_client, req).results)
+
+    def get_parameter(self, name: str) -> Any:
+        req = GetParameters.Request(names=[name])
+        value = self.helper.call(self.get_client, req).values[0]
+        return Parameter.from_parameter_msg(ParameterMsg(name=name, value=value)).value
+
+
+@pytest.fixture(scope='module')
+def rosout(helper: Helper) -> Collector:
+    return Collector(helper.node, Log, '/rosout',
+                     QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL))
+
+
+@pytest.fixture(scope='module')
+def planar(helper: Helper, rosout: Collector,
+           tmp_path_factory: pytest.TempPathFactory) -> Iterator[PlannerUnderTest]:
+    p = PlannerUnderTest(helper, tmp_path_factory.mktemp('planar'), 'planar_3r')
+    yield p
+    rc = p.process.stop()
+    assert rc == 0, p.process.output()
+
+
+@pytest.fixture(scope='module')
+def ur5e(helper: Helper, rosout: Collector,
+         tmp_path_factory: pytest.TempPathFactory) -> Iterator[PlannerUnderTest]:
+    p = PlannerUnderTest(helper, tmp_path_factory.mktemp('ur5e'), 'ur5e', ns='/ur5e')
+    yield p
+    rc = p.process.stop()
+    assert rc == 0, p.process.output()
+
+
+# =========================================================================== oracles
+
+ROBOT_3R = load_robot('planar_3r')
+START_3R = (2.5, 1.5, math.radians(30.0))                 # paper Table 1: p and yaw of n
+GOAL_3R = (1.5, 2.5, math.atan2(0.7, 0.714))
+
+
+def pose_3r(x: float, y: float, psi: float, frame: str = '') -> PoseStamped:
+    msg = PoseStamped()
+    msg.header.frame_id = frame
+    msg.pose.position.x, msg.pose.position.y = x, y
+    msg.pose.orientation.z, msg.pose.orientation.w = math.sin(psi / 2), math.cos(psi / 2)
+    return msg
+
+
+def request(start: PoseStamped, goal: PoseStamped, tolerance: float = 0.0) -> GetPlan.Request:
+    return GetPlan.Request(start=start, goal=goal, tolerance=tolerance)
+
+
+def paper_request() -> GetPlan.Request:
+    return request(pose_3r(*START_3R), pose_3r(*GOAL_3R))
+
+
+def ik_3r(x: float, y: float, phi: float) -> np.ndarray:
+    """Closed-form IK of the unit-link planar 3R arm, elbow branch theta2 > 0 (paper Table 2)."""
+    wx, wy = x - math.cos(phi), y - math.sin(phi)
+    q2 = math.acos((wx * wx + wy * wy - 2.0) / 2.0)
+    q1 = math.atan2(wy, wx) - math.atan2(math.sin(q2), 1.0 + math.cos(q2))
+    return np.array([q1, q2, phi - q1 - q2])
+
+
+def fk_3r(q: np.ndarray) -> np.ndarray:
+    """(N, 3) joint angles -> (N, 3) rows (x, y, phi)."""
+    c = np.cumsum(q, axis=1)
+    return np.stack([np.cos(c).sum(1), np.sin(c).sum(1), c[:, 2]], axis=1)
+
+
+def check_controller_contract(msg: JointTrajectory, names: list[str]) -> cv.TrajectoryArrays:
+    """What joint_trajectory_controller validates, plus item 4 of issue 4."""
+    assert cv.validate_joint_trajectory(msg) == []
+    assert list(msg.joint_names) == names
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (0, 0)
+    assert len(msg.points) >= 2
+    for p in msg.points:
+        assert len(p.positions) == len(p.velocities) == len(p.accelerations) == len(names)
+    arr = cv.joint_trajectory_to_arrays(msg)
+    assert arr.t[0] == 0.0
+    assert np.all(np.diff(arr.t) > 0.0)
+    assert np.all(np.isfinite(arr.positions))
+    assert_allclose(arr.velocities[0], 0.0, atol=1e-12)
+    assert_allclose(arr.velocities[-1], 0.0, atol=1e-12)
+    return arr
+
+
+def check_limits(arr: cv.TrajectoryArrays, vmax: np.ndarray, amax: np.ndarray) -> None:
+    assert np.all(np.abs(arr.velocities) <= vmax * (1 + 1e-6) + 1e-12)
+    assert np.all(np.abs(arr.accelerations) <= amax * (1 + 1e-6) + 1e-12)
+    # positions, velocities and accelerations are one trajectory (central differences, O(dt^2))
+    t, q, dq = arr.t, arr.positions, arr.velocities
+    fd = (q[2:] - q[:-2]) / (t[2:] - t[:-2])[:, None]
+    assert_allclose(fd, dq[1:-1], atol=5e-3 * float(np.max(vmax)))
+
+
+def check_line_phi_3r(arr: cv.TrajectoryArrays, atol: float = 1e-6) -> None:
+    """Tool on the straight line A->B with phi linear in the fraction along it (exact oracle)."""
+    xyphi = fk_3r(arr.positions)
+    a, b = np.array(START_3R), np.array(GOAL_3R)
+    d = b[:2] - a[:2]
+    lam = (xyphi[:, :2] - a[:2]) @ d / (d @ d)
+    on_line = a[:2] + lam[:, None] * d
+    assert np.max(np.linalg.norm(xyphi[:, :2] - on_line, axis=1)) < atol
+    assert np.max(np.abs(xyphi[:, 2] - (a[2] + lam * (b[2] - a[2])))) < atol
+    assert np.all(np.diff(lam) >= -1e-9)
+    assert_allclose(lam[[0, -1]], [0.0, 1.0], atol=atol)
+
+
+def rosout_since(rosout: Collector, k0: int, logger: str, level: int | None = None) -> list[Log]:
+    with rosout._cond:
+        msgs = rosout.msgs[k0:]
+    return [m for m in msgs if m.name == logger and (level is None or m.level == level)]
+
+
+def wait_log(rosout: Collector, k0: int, logger: str, level: int, text: str) -> Log:
+    return rosout.wait_until(
+        lambda msgs: next((m for m in msgs[k0:] if m.name == logger and m.level == level
+                           and text in m.msg), None),
+        what=f'log {level} from {logger} containing {text!r}')
+
+
+# =========================================================================== tests: 3R
+
+def test_paper_3r_plan_meets_controller_contract(planar: PlannerUnderTest, rosout: Collector) -> None:
+    n0, k0 = planar.traj.count(), rosout.count()
+    resp = planar.plan(paper_request())
+    msgs = planar.traj.wait_count(n0 + 1)
+    assert len(msgs) == n0 + 1
+    arr = check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
+    # first point: the IK solution of the start (paper Table 2 branch); last reaches the goal
+    assert_allclose(arr.positions[0], ik_3r(*START_3R), atol=1e-8)
+    assert_allclose(arr.positions[0], [0.258, 0.583, -0.317], atol=1e-3)
+    assert_allclose(fk_3r(arr.positions[-1:])[0], GOAL_3R, atol=1e-8)
+    check_line_phi_3r(arr)
+    check_limits(arr, ROBOT_3R.max_velocity, ROBOT_3R.max_acceleration)
+    # response: tool poses at the trajectory points, base frame
+    assert resp.plan.header.frame_id == 'base_link'
+    assert len(resp.plan.poses) == len(arr.t)
+    assert_allclose(cv.path_to_matrices(resp.plan), ROBOT_3R.fk(arr.positions), atol=1e-9)
+    # markers: line strip through the same tool positions, axes at start and goal
+    markers = planar.markers.wait_until(
+        lambda m: m and len(m[-1].markers[1].points) == len(arr.t) and m[-1], what='markers')
+    line = markers.markers[1]
+    assert line.type == Marker.LINE_STRIP and line.header.frame_id == 'base_link'
+    assert_allclose([[p.x, p.y, p.z] for p in line.points], ROBOT_3R.fk(arr.positions)[:, :3, 3],
+                    atol=1e-9)
+    # one info line with the figures
+    log = wait_log(rosout, k0, planar.logger, INFO, 'plan: ')
+    assert f'plan: {len(arr.t)} points' in log.msg
+
+
+def test_frame_id_base_link_accepted(planar: PlannerUnderTest) -> None:
+    n0 = planar.traj.count()
+    resp = planar.plan(request(pose_3r(*START_3R, frame='base_link'),
+                               pose_3r(*GOAL_3R, frame='base_link')))
+    assert len(resp.plan.poses) > 0
+    arr = check_controller_contract(planar.traj.wait_count(n0 + 1)[-1], ROBOT_3R.joint_names)
+    check_line_phi_3r(arr)
+
+
+def _unnormalised(msg: PoseStamped, factor: float) -> PoseStamped:
+    msg.pose.orientation.z *= factor
+    msg.pose.orientation.w *= factor
+    return msg
+
+
+def _nan_goal() -> GetPlan.Request:
+    req = paper_request()
+    req.goal.pose.position.x = float('nan')
+    return req
+
+
+def _bad_requests() -> list[tuple[str, Callable[[], GetPlan.Request], str]]:
+    return [
+        ('nan_position', _nan_goal, 'NaN'),
+        ('nan_quaternion', lambda: request(pose_3r(*START_3R),
+                                           _unnormalised(pose_3r(*GOAL_3R), float('nan'))), 'NaN'),
+        ('unnormalised', lambda: request(_unnormalised(pose_3r(*START_3R), 1.1), pose_3r(*GOAL_3R)),
+         'not normalised'),
+        ('zero_goal_quaternion', lambda: request(pose_3r(*START_3R),
+                                                 _unnormalised(pose_3r(*GOAL_3R), 0.0)),
+         'not normalised'),
+        ('unreachable', lambda: request(pose_3r(*START_3R), pose_3r(3.5, 1.0, 0.0)), 'IK failed'),
+        ('wrong_frame', lambda: request(pose_3r(*START_3R), pose_3r(*GOAL_3R, frame='world')),
+         "frame_id 'world'"),
+        ('wrong_start_frame', lambda: request(pose_3r(*START_3R, frame='map'), pose_3r(*GOAL_3R)),
+         "frame_id 'map'"),
+        ('negative_tolerance', lambda: request(pose_3r(*START_3R), pose_3r(*GOAL_3R), -1.0),
+         'tolerance'),
+    ]
+
+
+@pytest.mark.parametrize(('case', 'make', 'cause'), _bad_requests(), ids=[c[0] for c in _bad_requests()])
+def test_failure_then_good_request(planar: PlannerUnderTest, rosout: Collector, case: str,
+                                   make: Callable[[], GetPlan.Request], cause: str) -> None:
+    n0, k0 = planar.traj.count(), rosout.count()
+    resp = planar.plan(make())
+    assert len(resp.plan.poses) == 0
+    assert resp.plan.header.frame_id == 'base_link'
+    wait_log(rosout, k0, planar.logger, ERROR, cause)
+    # the node keeps serving: the next good request succeeds, and its trajectory is the only
+    # one published since (one publisher, reliable, in order: a failure's message would be first)
+    good = planar.plan(paper_request())
+    assert len(good.plan.poses) > 0
+    msgs = planar.traj.wait_count(n0 + 1)
+    assert len(msgs) == n0 + 1
+    arr = check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
+    assert_allclose(arr.positions[0], ik_3r(*START_3R), atol=1e-8)
+    wait_log(rosout, k0, planar.logger, INFO, 'plan: ')
+    errors = rosout_since(rosout, k0, planar.logger, ERROR)
+    assert len(errors) == 1, [e.msg for e in errors]        # one error line naming the cause
+    assert cause in errors[0].msg
+
+
+def test_quaternion_normalised_when_close(planar: PlannerUnderTest) -> None:
+    n0 = planar.traj.count()
+    req = request(_unnormalised(pose_3r(*START_3R), 1.0005), _unnormalised(pose_3r(*GOAL_3R), 0.9995))
+    assert len(planar.plan(req).plan.poses) > 0
+    arr = check_controller_contract(planar.traj.wait_count(n0 + 1)[-1], ROBOT_3R.joint_names)
+    assert_allclose(arr.positions[0], ik_3r(*START_3R), atol=1e-8)
+    check_line_phi_3r(arr)
+
+
+# --------------------------------------------------------------------------- parameters
+
+def test_parameter_rejection_keeps_old_values(planar: PlannerUnderTest, rosout: Collector) -> None:
+    cases = [
+        ({'velocity_scaling': 0.0}, 'velocity_scaling'),
+        ({'velocity_scaling': 1.5}, 'velocity_scaling'),
+        ({'velocity_scaling': float('nan')}, 'velocity_scaling'),
+        ({'max_velocity': [1.0, 2.0]}, 'max_velocity: 2 values for a robot with 3 joints'),
+        ({'max_acceleration': [1.0, -2.0, 1.0]}, 'max_acceleration'),
+        ({'sample_period': 0.0}, 'sample_period'),
+        ({'metric': 'euclid'}, 'metric'),
+        ({'joint_names': ['a', 'b']}, 'joint_names'),
+        ({'joint_names': ['a', 'a', 'b']}, 'joint_names'),
+        ({'robot': 'no_such_robot'}, "cannot load robot 'no_such_robot'"),
+        ({'velocity_scaling': 'fast'}, 'velocity_scaling'),
+    ]
+    for values, reason in cases:
+        (result,) = planar.set_parameters(**values)
+        assert not result.successful, values
+        assert reason in result.reason, (values, result.reason)
+    assert planar.get_parameter('velocity_scaling') == 1.0
+    assert list(planar.get_parameter('max_velocity')) == []
+    assert planar.get_parameter('robot') == 'planar_3r'
+    # still planning with the old configuration
+    n0 = planar.traj.count()
+    assert len(planar.plan(paper_request()).plan.poses) > 0
+    arr = check_controller_contract(planar.traj.wait_count(n0 + 1)[-1], ROBOT_3R.joint_names)
+    check_limits(arr, ROBOT_3R.max_velocity, ROBOT_3R.max_acceleration)
+
+
+def test_velocity_scaling_is_time_scaling_and_limits_apply(planar: PlannerUnderTest) -> None:
+    n0 = planar.traj.count()
+    planar.plan(paper_request())
+    full = cv.joint_trajectory_to_arrays(planar.traj.wait_count(n0 + 1)[-1])
+    try:
+        assert all(r.successful for r in planar.set_parameters(velocity_scaling=0.5))
+        planar.plan(paper_request())
+        half = check_controller_contract(planar.traj.wait_count(n0 + 2)[-1], ROBOT_3R.joint_names)
+        # time scaling: twice as long, same path, q_half(t) = q_full(t / 2)
+        assert half.t[-1] == pytest.approx(2.0 * full.t[-1], rel=1e-6)
+        check_line_phi_3r(half)
+        check_limits(half, 0.5 * ROBOT_3R.max_velocity, 0.25 * ROBOT_3R.max_acceleration)
+        assert np.max(np.abs(half.velocities)) == pytest.approx(
+            0.5 * np.max(np.abs(full.velocities)), rel=1e-3)
+        # per-joint limits from parameters: one value for all joints, then one per joint
+        assert all(r.successful for r in planar.set_parameters(velocity_scaling=1.0,
+                                                                max_velocity=[0.3]))
+        planar.plan(paper_request())
+        slow = check_controller_contract(planar.traj.wait_count(n0 + 3)[-1], ROBOT_3R.joint_names)
+        check_limits(slow, np.full(3, 0.3), ROBOT_3R.max_acceleration)
+        assert np.max(np.abs(slow.velocities)) > 0.29                # the limit is reached
+        assert all(r.successful for r in planar.set_parameters(max_velocity=[0.2, 0.4, 0.6],
+                                                                max_acceleration=[1, 1, 1]))
+        planar.plan(paper_request())
+        per = check_controller_contract(planar.traj.wait_count(n0 + 4)[-1], ROBOT_3R.joint_names)
+        check_limits(per, np.array([0.2, 0.4, 0.6]), np.ones(3))
+    finally:
+        planar.set_parameters(velocity_scaling=1.0, max_velocity=[], max_acceleration=[])
+
+
+def test_sample_period_parameter(planar: PlannerUnderTest) -> None:
+    n0 = planar.traj.count()
+    try:
+        assert all(r.successful for r in planar.set_parameters(sample_period=0.05))
+        planar.plan(paper_request())
+        arr = check_controller_contract(planar.traj.wait_count(n0 + 1)[-1], ROBOT_3R.joint_names)
+        steps = np.diff(arr.t)
+        assert_allclose(steps[:-1], 0.05, atol=1e-9)
+        assert 0.0 < steps[-1] <= 0.05 + 1e-9
+    finally:
+        planar.set_parameters(sample_period=0.01)
+
+
+# --------------------------------------------------------------------------- joint states
+
+def _joint_state(names: list[str], q: list[float]) -> JointState:
+    return JointState(name=names, position=[float(v) for v in q])
+
+
+def _from_state_request() -> GetPlan.Request:
+    start = PoseStamped()
+    start.pose.orientation.w = 0.0                  # all-zero quaternion, empty frame_id
+    return request(start, pose_3r(*GOAL_3R))
+
+
+def test_plan_from_joint_states(planar: PlannerUnderTest, helper: Helper, rosout: Collector) -> None:
+    node = helper.node
+    pub = node.create_publisher(JointState, '/joint_states', 10)
+    try:
+        wait_for(lambda: pub.get_subscription_count() > 0, what='/joint_states subscriber')
+        q_s = np.array([0.4, 0.7, -0.5])
+        # shuffled order plus a joint the robot does not have
+        good = _joint_state(['joint3', 'gripper', 'joint1', 'joint2'], [q_s[2], 9.0, q_s[0], q_s[1]])
+        n_before = planar.traj.count()
+
+        def attempt() -> GetPlan.Response | None:
+            pub.publish(good)
+            resp = planar.plan(_from_state_request())
+            return resp if resp.plan.poses else None
+
+        wait_for(attempt, what='a plan from the published joint state', poll=0.05)
+        arr = check_controller_contract(planar.traj.wait_count(n_before + 1)[-1],
+                                        ROBOT_3R.joint_names)
+        assert_allclose(arr.positions[0], q_s, atol=1e-12)
+        assert_allclose(fk_3r(arr.positions[-1:])[0], GOAL_3R, atol=1e-8)
+
+        # hostile messages, each with positions that would visibly change the start
+        k0 = rosout.count()
+        hostile = [
+            (_joint_state(['joint1', 'joint2', 'joint3'], [1.0, 1.0]), 'names but 2 positions'),
+            (_joint_state(['joint1', 'joint2', 'bogus'], [1.0, 1.0, 1.0]), "missing robot joints ['joint3']"),
+            (_joint_state(['a', 'b', 'c'], [1.0, 1.0, 1.0]), 'none of the robot joints'),
+            (_joint_state(['joint1', 'joint2', 'joint3'], [1.0, float('nan'), 1.0]), 'non-finite'),
+            (_joint_state(['joint1', 'joint1', 'joint3'], [1.0, 1.0, 1.0]), 'duplicate'),
+            (JointState(name=['joint1', 'joint2', 'joint3'], position=[1.0, 1.0, 1.0],
+                        velocity=[0.0]), 'velocity values'),
+        ]
+        for msg, text in hostile:
+            def published_and_warned(msg: JointState = msg, text: str = text) -> Any:
+                pub.publish(msg)
+                return next((m for m in rosout_since(rosout, k0, planar.logger, WARN)
+                             if text in m.msg), None)
+            wait_for(published_and_warned, what=f'warning {text!r}', poll=0.05)
+        n1 = planar.traj.count()
+        resp = planar.plan(_from_state_request())
+        assert len(resp.plan.poses) > 0
+        arr = check_controller_contract(planar.traj.wait_count(n1 + 1)[-1], ROBOT_3R.joint_names)
+        assert_allclose(arr.positions[0], q_s, atol=1e-12)       # still the last valid state
+    finally:
+        node.destroy_publisher(pub)
+
+
+# --------------------------------------------------------------------------- 6-joint arm
+
+def test_ur5e_line_and_rotation(ur5e: PlannerUnderTest) -> None:
+    robot = load_robot('ur5e')
+    q0 = np.array([0.3, -1.2, 1.4, -1.7, -1.5, 0.2])
+    T_a = robot.fk(q0)
+    axis = np.array([1.0, 2.0, -1.0]) / math.sqrt(6.0)
+    T_b = make_transform(T_a[:3, 3] + [0.12, -0.08, 0.1], so3_exp(math.radians(30.0) * axis) @ T_a[:3, :3])
+    n0 = ur5e.traj.count()
+    resp = ur5e.plan(request(cv.matrix_to_pose_stamped(T_a, ''), cv.matrix_to_pose_stamped(T_b, '')))
+    assert len(resp.plan.poses) > 0
+    msgs = ur5e.traj.wait_count(n0 + 1)
+    arr = check_controller_contract(msgs[-1], robot.joint_names)
+    check_limits(arr, robot.max_velocity, robot.max_acceleration)
+    tool = robot.fk(arr.positions)
+    assert_allclose(tool[0], T_a, atol=1e-8)
+    assert_allclose(tool[-1], T_b, atol=1e-8)
+    # line + slerp with one parameter (exact geodesic for a 6-joint arm)
+    d = T_b[:3, 3] - T_a[:3, 3]
+    lam = (tool[:, :3, 3] - T_a[:3, 3]) @ d / (d @ d)
+    assert np.max(np.linalg.norm(tool[:, :3, 3] - (T_a[:3, 3] + lam[:, None] * d), axis=1)) < 1e-6
+    w = so3_log(T_a[:3, :3].T @ T_b[:3, :3])
+    R_line = T_a[:3, :3] @ so3_exp(lam[:, None] * w)
+    ang = np.linalg.norm(so3_log(np.swapaxes(R_line, 1, 2) @ tool[:, :3, :3]), axis=1)
+    assert np.max(ang) < 1e-6
+    assert_allclose(cv.path_to_matrices(resp.plan), tool, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- process
+
+def test_sigint_exits_zero(tmp_path: FsPath, helper: Helper) -> None:
+    proc = NodeProcess(['--ros-args', '-p', 'robot:=planar_3r', '-r', '__ns:=/sigint'],
+                       tmp_path / 'sigint.log')
+    client = helper.node.create_client(GetPlan, '/sigint/geodesic_planner/plan')
+    try:
+        assert client.wait_for_service(timeout_sec=DEADLINE), proc.output()
+    finally:
+        helper.node.destroy_client(client)
+    rc = proc.stop(signal.SIGINT)
+    out = proc.output()
+    assert rc == 0, out
+    assert 'Traceback' not in out
+
+
+@pytest.mark.parametrize(('args', 'text'), [
+    (['-p', 'robot:=no_such_robot'], "cannot load robot 'no_such_robot'"),
+    (['-p', 'velocity_scaling:=2.0'], 'velocity_scaling'),
+    (['-p', 'max_velocity:=[1.0, 2.0]'], 'max_velocity'),
+    (['-p', 'robot:=/nonexistent/arm.urdf'], 'cannot load'),
+])
+def test_bad_start_exits_nonzero_without_traceback(tmp_path: FsPath, args: list[str], text: str) -> None:
+    proc = NodeProcess(['--ros-args', *args], tmp_path / 'bad.log')
+    try:
+        rc = proc.proc.wait(DEADLINE)
+    finally:
+        proc.stop()
+    out = proc.output()
+    assert rc == 1, out
+    assert 'cannot start' in out and text in out, out
+    assert 'Traceback' not in out, out
+
+
+BRANCHING_URDF = """<robot name="branchy">
+  <link name="base"/><link name="a"/><link name="b"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="base"/><child link="b"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint>
+</robot>
+"""
+
+
+def test_non_serial_urdf_exits_nonzero(tmp_path: FsPath) -> None:
+    pytest.importorskip('geodesic_planner.urdf')
+    params = tmp_path / 'params.yaml'
+    import yaml
+    params.write_text(yaml.safe_dump(
+        {'geodesic_planner': {'ros__parameters': {'robot_description': BRANCHING_URDF}}}))
+    proc = NodeProcess(['--ros-args', '--params-file', str(params)], tmp_path / 'urdf.log')
+    try:
+        rc = proc.proc.wait(DEADLINE)
+    finally:
+        proc.stop()
+    out = proc.output()
+    assert rc == 1, out
+    assert 'cannot load robot_description' in out and 'Traceback' not in out, out
