@@ -1,0 +1,289 @@
+"""Test helpers: independent DH forward kinematics and URDF text written from DH tables.
+
+Nothing here imports geodesic_planner: these are the oracles the library is checked against.
+
+* :func:`dh_product` multiplies the DH link transforms straightforwardly (standard DH
+  ``Rz(θ) Tz(d) Tx(a) Rx(α)`` or modified/Craig ``Rx(α) Tx(a) Rz(θ) Tz(d)``), one 4x4 at a time.
+* :func:`dh_to_urdf` writes the same chain as URDF: a base offset as a fixed joint, joint origins
+  with general ``xyz``/``rpy`` (optionally a random re-orientation of each joint frame, so the
+  joint axes are not z), some link transforms split off into extra fixed joints, prismatic and
+  continuous joints, and a fixed tool joint.
+
+Units: m, rad.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+
+# ---------------------------------------------------------------------- elementary transforms
+def rx(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1.0, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1]])
+
+
+def ry(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s, 0], [0, 1.0, 0, 0], [-s, 0, c, 0], [0, 0, 0, 1]])
+
+
+def rz(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1.0, 0], [0, 0, 0, 1]])
+
+
+def tr(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def xyz_rpy(xyz: Sequence[float], rpy: Sequence[float]) -> np.ndarray:
+    """URDF origin: translation then fixed-axis roll-pitch-yaw, R = Rz(y) Ry(p) Rx(r)."""
+    return tr(*xyz) @ rz(rpy[2]) @ ry(rpy[1]) @ rx(rpy[0])
+
+
+def rpy_from_matrix(R: np.ndarray) -> tuple[float, float, float]:
+    """(roll, pitch, yaw) with R = Rz(yaw) Ry(pitch) Rx(roll); checked by reconstruction."""
+    cp = float(np.hypot(R[0, 0], R[1, 0]))
+    pitch = float(np.arctan2(-R[2, 0], cp))
+    if cp > 1e-9:
+        roll = float(np.arctan2(R[2, 1], R[2, 2]))
+        yaw = float(np.arctan2(R[1, 0], R[0, 0]))
+    else:  # gimbal lock: only roll - yaw (or roll + yaw) is defined
+        yaw = 0.0
+        roll = float(np.arctan2(-R[1, 2], R[1, 1]))
+    back = xyz_rpy((0, 0, 0), (roll, pitch, yaw))[:3, :3]
+    assert np.allclose(back, R, atol=1e-12), 'rpy reconstruction failed'
+    return roll, pitch, yaw
+
+
+def random_rotation(rng: np.random.Generator) -> np.ndarray:
+    """4x4 transform with a uniformly random rotation (QR of a Gaussian matrix)."""
+    Q, Rr = np.linalg.qr(rng.normal(size=(3, 3)))
+    Q = Q @ np.diag(np.sign(np.diag(Rr)))
+    if np.linalg.det(Q) < 0:
+        Q[:, 0] = -Q[:, 0]
+    T = np.eye(4)
+    T[:3, :3] = Q
+    return T
+
+
+# ---------------------------------------------------------------------- DH oracle
+def dh_link(row: Sequence[float], kind: str, q: float, modified: bool) -> np.ndarray:
+    """One DH link transform with the joint variable q added to θ (revolute) or d (prismatic)."""
+    if modified:
+        alpha, a, d, theta = row
+    else:
+        theta, d, a, alpha = row
+    if kind == 'revolute':
+        theta = theta + q
+    else:
+        d = d + q
+    if modified:
+        return rx(alpha) @ tr(x=a) @ rz(theta) @ tr(z=d)
+    return rz(theta) @ tr(z=d) @ tr(x=a) @ rx(alpha)
+
+
+def dh_product(rows: Sequence[Sequence[float]], kinds: Sequence[str], q: Sequence[float], *,
+               modified: bool = False, base: np.ndarray | None = None,
+               tool: np.ndarray | None = None) -> np.ndarray:
+    """base · Π_i DH_i(q_i) · tool for one configuration q (dof,) -> 4x4."""
+    T = np.eye(4) if base is None else np.array(base, dtype=float)
+    for row, kind, qi in zip(rows, kinds, q):
+        T = T @ dh_link(row, kind, float(qi), modified)
+    if tool is not None:
+        T = T @ tool
+    return T
+
+
+def dh_fk_batch(rows, kinds, qs, **kw) -> np.ndarray:
+    """dh_product over qs (N, dof) -> (N, 4, 4)."""
+    return np.array([dh_product(rows, kinds, q, **kw) for q in np.atleast_2d(qs)])
+
+
+def embed12(T: np.ndarray) -> np.ndarray:
+    """(p, n, o, a) of a 4x4 (or (..., 4, 4)) transform: position, then the rotation's columns."""
+    return np.concatenate([T[..., :3, 3], T[..., :3, 0], T[..., :3, 1], T[..., :3, 2]], axis=-1)
+
+
+# ---------------------------------------------------------------------- URDF writer
+def _fmt(x: float) -> str:
+    x = float(x)
+    if abs(x) < 1e-14:
+        x = 0.0  # no -0.0 or round-off specks in the text
+    return f'{x:.16g}'
+
+
+def origin_xml(T: np.ndarray) -> str:
+    r, p, y = rpy_from_matrix(T[:3, :3])
+    xyz = ' '.join(_fmt(v) for v in T[:3, 3])
+    return f'<origin xyz="{xyz}" rpy="{_fmt(r)} {_fmt(p)} {_fmt(y)}"/>'
+
+
+def dh_to_urdf(
+    name: str,
+    rows: Sequence[Sequence[float]],
+    kinds: Sequence[str],
+    *,
+    modified: bool = False,
+    base: np.ndarray | None = None,
+    tool: np.ndarray | None = None,
+    continuous: Sequence[int] = (),
+    lower: Sequence[float] | None = None,
+    upper: Sequence[float] | None = None,
+    velocity: Sequence[float] | None = None,
+    split: Sequence[int] = (),
+    twist_seed: int | None = None,
+    joint_names: Sequence[str] | None = None,
+    root_link: str = 'world',
+    base_link: str = 'base_link',
+    tip_link: str = 'tool0',
+    extra: str = '',
+    comment: str = '',
+) -> str:
+    """URDF text of a DH chain.
+
+    Link i's transform ``DH_i(q) = O_i · M(q) · A_i`` (O_i before the joint motion, A_i after it)
+    becomes a joint with origin O_i (times an optional random re-orientation Q_i, with the joint
+    axis then ``Q_iᵀ z``), and A_i is either folded into the next joint's origin or, for links in
+    ``split``, emitted as its own fixed joint.
+
+    Args:
+        base: fixed transform root_link -> base_link (a fixed joint), identity if None.
+        tool: fixed transform from the last DH frame to tip_link (a fixed joint).
+        continuous: indices of revolute joints written as type="continuous" (no position limits).
+        split: indices of links whose after-joint transform gets its own fixed joint.
+        twist_seed: if set, each joint frame is re-oriented by a random rotation.
+        extra: raw XML appended inside <robot> (e.g. a branch, for error tests).
+    """
+    n = len(rows)
+    names = list(joint_names) if joint_names else [f'joint{i + 1}' for i in range(n)]
+    lo = list(lower) if lower is not None else [-3.0] * n
+    hi = list(upper) if upper is not None else [3.0] * n
+    vel = list(velocity) if velocity is not None else [1.5] * n
+    rng = np.random.default_rng(twist_seed) if twist_seed is not None else None
+    links = [root_link, base_link]
+    joints: list[str] = []
+    joints.append(
+        f'<joint name="{root_link}_to_{base_link}" type="fixed"><parent link="{root_link}"/>'
+        f'<child link="{base_link}"/>{origin_xml(np.eye(4) if base is None else base)}</joint>')
+    parent = base_link
+    pending = np.eye(4)  # fixed transform not yet emitted
+    for i, (row, kind) in enumerate(zip(rows, kinds)):
+        if modified:
+            alpha, a, d, theta = row
+            before = rx(alpha) @ tr(x=a) @ rz(theta)
+            after = tr(z=d)
+            if kind == 'prismatic':
+                before, after = before @ after, np.eye(4)
+        else:
+            theta, d, a, alpha = row
+            before = rz(theta) @ tr(z=d)   # Rz(q) commutes with Tz(d); Tz(q) too
+            after = tr(x=a) @ rx(alpha)
+        Q = random_rotation(rng) if rng is not None else np.eye(4)
+        origin = pending @ before @ Q
+        axis = Q[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+        after = Q.T @ after  # undo the re-orientation after the motion (Q commutes with nothing, so
+        # the motion M is expressed in the re-oriented frame: Q M' Qᵀ = M with M' about Qᵀ z)
+        child = f'link{i + 1}'
+        links.append(child)
+        jtype = kind
+        limit = f'<limit lower="{_fmt(lo[i])}" upper="{_fmt(hi[i])}" effort="100" velocity="{_fmt(vel[i])}"/>'
+        if kind == 'revolute' and i in continuous:
+            jtype = 'continuous'
+            limit = f'<limit effort="100" velocity="{_fmt(vel[i])}"/>'
+        ax = ' '.join(_fmt(v) for v in axis)
+        joints.append(
+            f'<joint name="{names[i]}" type="{jtype}"><parent link="{parent}"/><child link="{child}"/>'
+            f'{origin_xml(origin)}<axis xyz="{ax}"/>{limit}</joint>')
+        parent = child
+        if i in split:
+            mid = f'link{i + 1}_dh'
+            links.append(mid)
+            joints.append(
+                f'<joint name="{names[i]}_dh_fixed" type="fixed"><parent link="{parent}"/>'
+                f'<child link="{mid}"/>{origin_xml(after)}</joint>')
+            parent = mid
+            pending = np.eye(4)
+        else:
+            pending = after
+    last = pending @ (np.eye(4) if tool is None else tool)
+    links.append(tip_link)
+    joints.append(
+        f'<joint name="{tip_link}_fixed" type="fixed"><parent link="{parent}"/><child link="{tip_link}"/>'
+        f'{origin_xml(last)}</joint>')
+    body = '\n  '.join([f'<link name="{lk}"/>' for lk in links] + joints)
+    head = f'<!-- {comment} -->\n' if comment else ''
+    return f'<?xml version="1.0"?>\n{head}<robot name="{name}">\n  {body}\n  {extra}\n</robot>\n'
+
+
+# ---------------------------------------------------------------------- example arms (data files)
+PI = np.pi
+DEG = PI / 180.0
+
+#: KUKA KR6 R900-like 6R arm, standard DH rows (θ_offset, d, a, α), published main dimensions:
+#: base height 0.400, shoulder offset 0.025, upper arm 0.455, elbow offset 0.035, forearm 0.420,
+#: flange 0.080 (m). Mounted on a tilted pedestal; tool0 rotated from the flange.
+KR6 = {
+    'name': 'kr6_like',
+    'doc': 'generic 6R industrial arm with KUKA KR6 R900-like dimensions (not an official model).',
+    'rows': [(0.0, 0.400, 0.025, -PI / 2), (0.0, 0.0, 0.455, 0.0), (0.0, 0.0, 0.035, -PI / 2),
+             (0.0, 0.420, 0.0, PI / 2), (0.0, 0.0, 0.0, -PI / 2), (0.0, 0.080, 0.0, 0.0)],
+    'kinds': ['revolute'] * 6,
+    'base': xyz_rpy((0.2, -0.1, 0.35), (0.05, -0.03, 0.5)),
+    'tool': xyz_rpy((0.0, 0.01, 0.06), (PI, 0.0, PI / 2)),
+    'lower': [-170 * DEG, -190 * DEG, -120 * DEG, -185 * DEG, -120 * DEG, -350 * DEG],
+    'upper': [170 * DEG, 45 * DEG, 156 * DEG, 185 * DEG, 120 * DEG, 350 * DEG],
+    'velocity': [360 * DEG, 300 * DEG, 360 * DEG, 381 * DEG, 388 * DEG, 615 * DEG],
+    'joint_names': [f'kr6_a{i}' for i in range(1, 7)],
+    'split': (1, 3),
+    'root_link': 'world', 'base_link': 'kr6_base_link', 'tip_link': 'kr6_tool0',
+}
+
+#: KUKA LBR iiwa 14-like 7R arm, standard DH rows (θ_offset, d, a, α): d1 = 0.36, d3 = 0.42,
+#: d5 = 0.40, flange d7 = 0.126 (m). Base offset with a yaw; tool0 offset along the flange axis.
+IIWA = {
+    'name': 'iiwa_like_7r',
+    'doc': 'generic 7R redundant arm with KUKA LBR iiwa 14-like dimensions (not an official model).',
+    'rows': [(0.0, 0.36, 0.0, -PI / 2), (0.0, 0.0, 0.0, PI / 2), (0.0, 0.42, 0.0, PI / 2),
+             (0.0, 0.0, 0.0, -PI / 2), (0.0, 0.40, 0.0, -PI / 2), (0.0, 0.0, 0.0, PI / 2),
+             (0.0, 0.126, 0.0, 0.0)],
+    'kinds': ['revolute'] * 7,
+    'base': xyz_rpy((-0.3, 0.25, 0.8), (0.0, 0.0, -PI / 3)),
+    'tool': xyz_rpy((0.0, 0.0, 0.045), (0.0, 0.0, PI / 4)),
+    'lower': [-170 * DEG, -120 * DEG, -170 * DEG, -120 * DEG, -170 * DEG, -120 * DEG, -175 * DEG],
+    'upper': [170 * DEG, 120 * DEG, 170 * DEG, 120 * DEG, 170 * DEG, 120 * DEG, 175 * DEG],
+    'velocity': [85 * DEG, 85 * DEG, 100 * DEG, 75 * DEG, 130 * DEG, 135 * DEG, 135 * DEG],
+    'joint_names': [f'iiwa_joint_{i}' for i in range(1, 8)],
+    'split': (0, 2, 4),
+    'root_link': 'world', 'base_link': 'iiwa_link_0', 'tip_link': 'iiwa_tool0',
+}
+
+EXAMPLE_ARMS = {'kr6_like': KR6, 'iiwa_like_7r': IIWA}
+
+
+def arm_urdf(spec: dict) -> str:
+    """URDF text of one of EXAMPLE_ARMS."""
+    keys = ('base', 'tool', 'lower', 'upper', 'velocity', 'joint_names', 'split', 'root_link',
+            'base_link', 'tip_link')
+    comment = (f'{spec["name"]}: {spec["doc"]} Written from a standard DH table by test/urdf_util.py '
+               '(python test/urdf_util.py regenerates it); test/test_urdf.py checks its FK against '
+               'the DH product.')
+    return dh_to_urdf(spec['name'], spec['rows'], spec['kinds'], comment=comment,
+                      **{k: spec[k] for k in keys})
+
+
+def arm_fk(spec: dict, q: Sequence[float]) -> np.ndarray:
+    """Oracle FK (root link -> tip link) of one of EXAMPLE_ARMS."""
+    return dh_product(spec['rows'], spec['kinds'], q, base=spec['base'], tool=spec['tool'])
+
+
+if __name__ == '__main__':  # regenerate geodesic_planner/data/*.urdf
+    import os
+    out = os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'geodesic_planner', 'data')
+    for key, spec in EXAMPLE_ARMS.items():
+        with open(os.path.join(out, f'{key}.urdf'), 'w', encoding='utf-8') as fh:
+            fh.write(arm_urdf(spec))
