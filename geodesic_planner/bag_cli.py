@@ -91,37 +91,37 @@ def pair_trajectories(
 
 
 def _plot_one(path: Path, before: TrajectoryRecord | None, after: TrajectoryRecord | None, title: str) -> None:
+    """3 x 2 grid: rows position/velocity/acceleration; left the input, right the output."""
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
+    fig, axes = plt.subplots(3, 2, figsize=(12, 8), sharey='row', squeeze=False)
     labels = ('position [rad or m]', 'velocity [/s]', 'acceleration [/s²]')
-    ref = after or before
-    assert ref is not None
     colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
-    for rec, style in ((after, 'line'), (before, 'marker')):
+    for col, (rec, heading) in enumerate(((before, 'before processing'), (after, 'after processing'))):
+        axes[0, col].set_title(f'{heading}: {rec.topic}' if rec is not None else f'{heading}: none', fontsize=9)
         if rec is None:
             continue
-        for k, values in enumerate((rec.positions, rec.velocities, rec.accelerations)):
+        style = dict(marker='o', ms=3, lw=0.8) if rec.t.size <= 200 else dict(lw=1.5)
+        for row, values in enumerate((rec.positions, rec.velocities, rec.accelerations)):
             if values is None:
+                axes[row, col].text(0.5, 0.5, 'not in message', ha='center', va='center',
+                                    transform=axes[row, col].transAxes, color='gray')
                 continue
             for j, name in enumerate(rec.joint_names):
-                c = colors[j % len(colors)]
-                if style == 'line':
-                    axes[k].plot(rec.t, values[:, j], '-', color=c, lw=1.5, label=f'{name} ({rec.topic})')
-                else:
-                    axes[k].plot(rec.t, values[:, j], 'o', color=c, ms=3, mfc='none',
-                                 label=f'{name} ({rec.topic})')
-    for ax, label in zip(axes, labels):
-        ax.set_ylabel(label)
-        ax.grid(True, alpha=0.3)
-    axes[-1].set_xlabel('time from start [s]')
-    axes[0].legend(fontsize=7, ncol=2, loc='best')
+                axes[row, col].plot(rec.t, values[:, j], color=colors[j % len(colors)], label=name, **style)
+    for row, label in enumerate(labels):
+        axes[row, 0].set_ylabel(label)
+        for col in range(2):
+            axes[row, col].grid(True, alpha=0.3)
+    for col in range(2):
+        axes[-1, col].set_xlabel('time from start [s]')
+    axes[0, 0 if before is not None else 1].legend(fontsize=7, loc='best')
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    fig.savefig(path, dpi=90)
     plt.close(fig)
 
 
@@ -160,11 +160,11 @@ def plot_bag(
     for k, (before, after) in enumerate(pairs):
         parts = []
         if before is not None:
-            parts.append(f'{before.topic}: {before.t.size} points, {before.duration:.3f} s (markers)')
+            parts.append(f'{before.topic}: {before.t.size} points, {before.duration:.3f} s')
         if after is not None:
-            parts.append(f'{after.topic}: {after.t.size} points, {after.duration:.3f} s (lines)')
+            parts.append(f'{after.topic}: {after.t.size} points, {after.duration:.3f} s')
         problems = (before.problems if before is not None else ()) + (after.problems if after is not None else ())
-        title = f'trajectory {k}\n' + '\n'.join(parts) + (f'\nINVALID: {problems[0]}' if problems else '')
+        title = f'trajectory {k}: ' + ' -> '.join(parts) + (f'\nINVALID: {problems[0]}' if problems else '')
         path = out_dir / f'trajectory_{k:02d}.png'
         _plot_one(path, before, after, title)
         written.append(path)
