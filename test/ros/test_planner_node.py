@@ -9,27 +9,22 @@ from __future__ import annotations
 
 import math
 import signal
-import subprocess
-import sys
-import threading
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path as FsPath
 from typing import Any
 
 import numpy as np
 import pytest
+import yaml
 
 pytest.importorskip('rclpy')
 
-import rclpy  # noqa: E402
 from geometry_msgs.msg import PoseStamped  # noqa: E402
 from nav_msgs.srv import GetPlan  # noqa: E402
 from numpy.testing import assert_allclose  # noqa: E402
 from rcl_interfaces.msg import Log  # noqa: E402
 from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
 from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
-from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
@@ -40,144 +35,36 @@ from geodesic_planner import load_robot  # noqa: E402
 from geodesic_planner.ros import conversions as cv  # noqa: E402
 from geodesic_planner.transforms import make_transform, so3_exp, so3_log  # noqa: E402
 
+from .launch import (Collector, RclpyRuntime, call_service, popen_node, wait_for_service,  # noqa: E402
+                     wait_for_subscribers, wait_until)
+
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
 
-NODE_SCRIPT = str(FsPath(sys.executable).with_name('geodesic_planner_node'))
 DEADLINE = 60.0      # s, generous: first plans include imports and caches on a loaded 2-core box
 ERROR, WARN, INFO = 40, 30, 20
 
 
-# =========================================================================== local helpers
-# Minimal process/rclpy helpers (real node in a subprocess, client node spun in a thread).
-
-class NodeProcess:
-    """A node started from its console script; output goes to a log file."""
-
-    def __init__(self, args: list[str], log_path: FsPath) -> None:
-        self.log_path = log_path
-        self._log = open(log_path, 'wb')  # noqa: SIM115 - closed in stop()
-        self.proc = subprocess.Popen([NODE_SCRIPT, *args], stdout=self._log,
-                                     stderr=subprocess.STDOUT)
-
-    def output(self) -> str:
-        if not self._log.closed:
-            self._log.flush()
-        return self.log_path.read_text(errors='replace')
-
-    def stop(self, sig: int = signal.SIGINT, timeout: float = 15.0) -> int:
-        """Send ``sig``, wait, escalate to SIGTERM then SIGKILL; returns the exit code."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(sig)
-            try:
-                self.proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.proc.terminate()
-                try:
-                    self.proc.wait(5)
-                except subprocess.TimeoutExpired:
-                    self.proc.kill()
-                    self.proc.wait(5)
-        self._log.close()
-        return self.proc.returncode
-
-
-class Collector:
-    """Keeps every message of a subscription; wait_until(pred) waits on a condition."""
-
-    def __init__(self, node: Any, msg_type: Any, topic: str, qos: QoSProfile | int = 10) -> None:
-        self.msgs: list[Any] = []
-        self._cond = threading.Condition()
-        self.sub = node.create_subscription(msg_type, topic, self._cb, qos)
-
-    def _cb(self, msg: Any) -> None:
-        with self._cond:
-            self.msgs.append(msg)
-            self._cond.notify_all()
-
-    def count(self) -> int:
-        with self._cond:
-            return len(self.msgs)
-
-    def wait_until(self, pred: Callable[[list[Any]], Any], timeout: float = DEADLINE,
-                   what: str = 'condition') -> Any:
-        with self._cond:
-            end = time.monotonic() + timeout
-            while True:
-                res = pred(self.msgs)
-                if res:
-                    return res
-                left = end - time.monotonic()
-                if left <= 0:
-                    raise AssertionError(f'timed out after {timeout} s waiting for {what}')
-                self._cond.wait(left)
-
-    def wait_count(self, n: int, timeout: float = DEADLINE) -> list[Any]:
-        self.wait_until(lambda m: len(m) >= n, timeout, f'{n} messages on {self.sub.topic_name}')
-        with self._cond:
-            return list(self.msgs)
-
-
-class Helper:
-    """An rclpy node in the test process, spun by a background executor."""
-
-    def __init__(self) -> None:
-        rclpy.init()
-        self.node = rclpy.create_node('test_planner_node_helper')
-        self.executor = MultiThreadedExecutor(num_threads=2)
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-
-    def call(self, client: Any, request: Any, timeout: float = DEADLINE) -> Any:
-        if not client.wait_for_service(timeout_sec=timeout):
-            raise AssertionError(f'service {client.srv_name} not available after {timeout} s')
-        done = threading.Event()
-        future = client.call_async(request)
-        future.add_done_callback(lambda _f: done.set())
-        if not done.wait(timeout):
-            raise AssertionError(f'no response from {client.srv_name} after {timeout} s')
-        return future.result()
-
-    def close(self) -> None:
-        self.executor.shutdown(timeout_sec=5)
-        self.node.destroy_node()
-        rclpy.try_shutdown()
-
-
-def wait_for(pred: Callable[[], Any], timeout: float = DEADLINE, what: str = 'condition',
-             poll: float = 0.02) -> Any:
-    """Poll ``pred`` until truthy (used only for graph queries, which have no event)."""
-    end = time.monotonic() + timeout
-    while True:
-        res = pred()
-        if res:
-            return res
-        if time.monotonic() > end:
-            raise AssertionError(f'timed out after {timeout} s waiting for {what}')
-        threading.Event().wait(poll)
-
-
 # =========================================================================== fixtures
+# Nodes are started with test/ros/launch.py (console script, own process group, log file); the
+# test process talks to them through a helper node on the session's spinning executor.
 
 @pytest.fixture(scope='module')
-def helper() -> Iterator[Helper]:
-    h = Helper()
-    yield h
-    h.close()
+def helper(rclpy_runtime: RclpyRuntime) -> Iterator[Any]:
+    node = rclpy_runtime.create_node('planner_node_test')
+    yield node
+    rclpy_runtime.destroy_node(node)
 
 
 class PlannerUnderTest:
     """A running planner node and the helper-side entities talking to it."""
 
-    def __init__(self, helper: Helper, tmp: FsPath, robot: str, ns: str = '') -> None:
-        args = ['--ros-args', '-p', f'robot:={robot}']
-        if ns:
-            args += ['-r', f'__ns:={ns}']
+    def __init__(self, node: Any, log_dir: FsPath, robot: str, ns: str = '') -> None:
+        ros_args = ['-r', f'__ns:={ns}'] if ns else []
         self.name = f'{ns}/geodesic_planner'
         self.logger = f'{ns.strip("/")}.geodesic_planner' if ns else 'geodesic_planner'
-        self.process = NodeProcess(args, tmp / f'{robot}.log')
-        self.helper = helper
-        node = helper.node
+        self.process = popen_node('geodesic_planner_node', *ros_args, params={'robot': robot},
+                                  name=f'planner_{robot}', log_dir=log_dir)
+        self.watch = [self.process]
         self.plan_client = node.create_client(GetPlan, f'{self.name}/plan')
         self.set_client = node.create_client(SetParameters, f'{self.name}/set_parameters')
         self.get_client = node.create_client(GetParameters, f'{self.name}/get_parameters')
@@ -186,49 +73,53 @@ class PlannerUnderTest:
         self.markers = Collector(node, MarkerArray, f'{self.name}/path_markers',
                                  QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                                             durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        if not self.plan_client.wait_for_service(timeout_sec=DEADLINE):
-            raise AssertionError(f'{self.name}/plan not up:\n{self.process.output()}')
-        wait_for(lambda: node.count_publishers(f'{self.name}/joint_trajectory') > 0
-                 and self.traj.sub.get_publisher_count() > 0,
-                 what='trajectory publisher matched')
+        for client in (self.plan_client, self.set_client, self.get_client):
+            wait_for_service(client, DEADLINE, watch=self.watch)
+        wait_until(lambda: self.traj.subscription.get_publisher_count() > 0, DEADLINE,
+                   what='trajectory publisher matched', watch=self.watch)
 
     def plan(self, request: GetPlan.Request) -> GetPlan.Response:
-        return self.helper.call(self.plan_client, request)
+        return call_service(self.plan_client, request, DEADLINE, watch=self.watch)
+
+    def wait_trajectories(self, n: int) -> list[JointTrajectory]:
+        return self.traj.wait_for(n, DEADLINE, watch=self.watch)
 
     def set_parameters(self, **values: Any) -> list[Any]:
         req = SetParameters.Request()
         req.parameters = [Parameter(k, value=v).to_parameter_msg() for k, v in values.items()]
-        return list(self.helper.call(self.set_client, req).results)
+        return list(call_service(self.set_client, req, DEADLINE, watch=self.watch).results)
 
     def get_parameter(self, name: str) -> Any:
         req = GetParameters.Request(names=[name])
-        value = self.helper.call(self.get_client, req).values[0]
+        value = call_service(self.get_client, req, DEADLINE, watch=self.watch).values[0]
         return Parameter.from_parameter_msg(ParameterMsg(name=name, value=value)).value
+
+    def stop(self) -> None:
+        rc = self.process.stop(signal.SIGINT)
+        assert rc == 0, self.process.log_text()
 
 
 @pytest.fixture(scope='module')
-def rosout(helper: Helper) -> Collector:
-    return Collector(helper.node, Log, '/rosout',
+def rosout(helper: Any) -> Collector:
+    return Collector(helper, Log, '/rosout',
                      QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL))
 
 
 @pytest.fixture(scope='module')
-def planar(helper: Helper, rosout: Collector,
+def planar(helper: Any, rosout: Collector,
            tmp_path_factory: pytest.TempPathFactory) -> Iterator[PlannerUnderTest]:
     p = PlannerUnderTest(helper, tmp_path_factory.mktemp('planar'), 'planar_3r')
     yield p
-    rc = p.process.stop()
-    assert rc == 0, p.process.output()
+    p.stop()
 
 
 @pytest.fixture(scope='module')
-def ur5e(helper: Helper, rosout: Collector,
+def ur5e(helper: Any, rosout: Collector,
          tmp_path_factory: pytest.TempPathFactory) -> Iterator[PlannerUnderTest]:
     p = PlannerUnderTest(helper, tmp_path_factory.mktemp('ur5e'), 'ur5e', ns='/ur5e')
     yield p
-    rc = p.process.stop()
-    assert rc == 0, p.process.output()
+    p.stop()
 
 
 # =========================================================================== oracles
@@ -308,24 +199,24 @@ def check_line_phi_3r(arr: cv.TrajectoryArrays, atol: float = 1e-6) -> None:
 
 
 def rosout_since(rosout: Collector, k0: int, logger: str, level: int | None = None) -> list[Log]:
-    with rosout._cond:
-        msgs = rosout.msgs[k0:]
+    """/rosout records of ``logger`` (at ``level``) received after the first ``k0``."""
+    msgs = rosout.messages[k0:]
     return [m for m in msgs if m.name == logger and (level is None or m.level == level)]
 
 
 def wait_log(rosout: Collector, k0: int, logger: str, level: int, text: str) -> Log:
-    return rosout.wait_until(
-        lambda msgs: next((m for m in msgs[k0:] if m.name == logger and m.level == level
-                           and text in m.msg), None),
-        what=f'log {level} from {logger} containing {text!r}')
+    """Wait for a /rosout record after the first ``k0`` containing ``text``."""
+    return wait_until(
+        lambda: next((m for m in rosout_since(rosout, k0, logger, level) if text in m.msg), None),
+        DEADLINE, what=f'log {level} from {logger} containing {text!r}')
 
 
 # =========================================================================== tests: 3R
 
 def test_paper_3r_plan_meets_controller_contract(planar: PlannerUnderTest, rosout: Collector) -> None:
-    n0, k0 = planar.traj.count(), rosout.count()
+    n0, k0 = len(planar.traj), len(rosout)
     resp = planar.plan(paper_request())
-    msgs = planar.traj.wait_count(n0 + 1)
+    msgs = planar.wait_trajectories(n0 + 1)
     assert len(msgs) == n0 + 1
     arr = check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
     # first point: the IK solution of the start (paper Table 2 branch); last reaches the goal
@@ -339,8 +230,9 @@ def test_paper_3r_plan_meets_controller_contract(planar: PlannerUnderTest, rosou
     assert len(resp.plan.poses) == len(arr.t)
     assert_allclose(cv.path_to_matrices(resp.plan), ROBOT_3R.fk(arr.positions), atol=1e-9)
     # markers: line strip through the same tool positions, axes at start and goal
-    markers = planar.markers.wait_until(
-        lambda m: m and len(m[-1].markers[1].points) == len(arr.t) and m[-1], what='markers')
+    markers = wait_until(
+        lambda: (m := planar.markers.messages) and len(m[-1].markers[1].points) == len(arr.t)
+        and m[-1], DEADLINE, what='markers of the plan', watch=planar.watch)
     line = markers.markers[1]
     assert line.type == Marker.LINE_STRIP and line.header.frame_id == 'base_link'
     assert_allclose([[p.x, p.y, p.z] for p in line.points], ROBOT_3R.fk(arr.positions)[:, :3, 3],
@@ -351,11 +243,11 @@ def test_paper_3r_plan_meets_controller_contract(planar: PlannerUnderTest, rosou
 
 
 def test_frame_id_base_link_accepted(planar: PlannerUnderTest) -> None:
-    n0 = planar.traj.count()
+    n0 = len(planar.traj)
     resp = planar.plan(request(pose_3r(*START_3R, frame='base_link'),
                                pose_3r(*GOAL_3R, frame='base_link')))
     assert len(resp.plan.poses) > 0
-    arr = check_controller_contract(planar.traj.wait_count(n0 + 1)[-1], ROBOT_3R.joint_names)
+    arr = check_controller_contract(planar.wait_trajectories(n0 + 1)[-1], ROBOT_3R.joint_names)
     check_line_phi_3r(arr)
 
 
@@ -394,7 +286,7 @@ def _bad_requests() -> list[tuple[str, Callable[[], GetPlan.Request], str]]:
 @pytest.mark.parametrize(('case', 'make', 'cause'), _bad_requests(), ids=[c[0] for c in _bad_requests()])
 def test_failure_then_good_request(planar: PlannerUnderTest, rosout: Collector, case: str,
                                    make: Callable[[], GetPlan.Request], cause: str) -> None:
-    n0, k0 = planar.traj.count(), rosout.count()
+    n0, k0 = len(planar.traj), len(rosout)
     resp = planar.plan(make())
     assert len(resp.plan.poses) == 0
     assert resp.plan.header.frame_id == 'base_link'
@@ -403,7 +295,7 @@ def test_failure_then_good_request(planar: PlannerUnderTest, rosout: Collector, 
     # one published since (one publisher, reliable, in order: a failure's message would be first)
     good = planar.plan(paper_request())
     assert len(good.plan.poses) > 0
-    msgs = planar.traj.wait_count(n0 + 1)
+    msgs = planar.wait_trajectories(n0 + 1)
     assert len(msgs) == n0 + 1
     arr = check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
     assert_allclose(arr.positions[0], ik_3r(*START_3R), atol=1e-8)
@@ -414,10 +306,10 @@ def test_failure_then_good_request(planar: PlannerUnderTest, rosout: Collector, 
 
 
 def test_quaternion_normalised_when_close(planar: PlannerUnderTest) -> None:
-    n0 = planar.traj.count()
+    n0 = len(planar.traj)
     req = request(_unnormalised(pose_3r(*START_3R), 1.0005), _unnormalised(pose_3r(*GOAL_3R), 0.9995))
     assert len(planar.plan(req).plan.poses) > 0
-    arr = check_controller_contract(planar.traj.wait_count(n0 + 1)[-1], ROBOT_3R.joint_names)
+    arr = check_controller_contract(planar.wait_trajectories(n0 + 1)[-1], ROBOT_3R.joint_names)
     assert_allclose(arr.positions[0], ik_3r(*START_3R), atol=1e-8)
     check_line_phi_3r(arr)
 
@@ -446,20 +338,20 @@ def test_parameter_rejection_keeps_old_values(planar: PlannerUnderTest, rosout: 
     assert list(planar.get_parameter('max_velocity')) == []
     assert planar.get_parameter('robot') == 'planar_3r'
     # still planning with the old configuration
-    n0 = planar.traj.count()
+    n0 = len(planar.traj)
     assert len(planar.plan(paper_request()).plan.poses) > 0
-    arr = check_controller_contract(planar.traj.wait_count(n0 + 1)[-1], ROBOT_3R.joint_names)
+    arr = check_controller_contract(planar.wait_trajectories(n0 + 1)[-1], ROBOT_3R.joint_names)
     check_limits(arr, ROBOT_3R.max_velocity, ROBOT_3R.max_acceleration)
 
 
 def test_velocity_scaling_is_time_scaling_and_limits_apply(planar: PlannerUnderTest) -> None:
-    n0 = planar.traj.count()
+    n0 = len(planar.traj)
     planar.plan(paper_request())
-    full = cv.joint_trajectory_to_arrays(planar.traj.wait_count(n0 + 1)[-1])
+    full = cv.joint_trajectory_to_arrays(planar.wait_trajectories(n0 + 1)[-1])
     try:
         assert all(r.successful for r in planar.set_parameters(velocity_scaling=0.5))
         planar.plan(paper_request())
-        half = check_controller_contract(planar.traj.wait_count(n0 + 2)[-1], ROBOT_3R.joint_names)
+        half = check_controller_contract(planar.wait_trajectories(n0 + 2)[-1], ROBOT_3R.joint_names)
         # time scaling: twice as long, same path, q_half(t) = q_full(t / 2)
         assert half.t[-1] == pytest.approx(2.0 * full.t[-1], rel=1e-6)
         check_line_phi_3r(half)
@@ -470,24 +362,24 @@ def test_velocity_scaling_is_time_scaling_and_limits_apply(planar: PlannerUnderT
         assert all(r.successful for r in planar.set_parameters(velocity_scaling=1.0,
                                                                 max_velocity=[0.3]))
         planar.plan(paper_request())
-        slow = check_controller_contract(planar.traj.wait_count(n0 + 3)[-1], ROBOT_3R.joint_names)
+        slow = check_controller_contract(planar.wait_trajectories(n0 + 3)[-1], ROBOT_3R.joint_names)
         check_limits(slow, np.full(3, 0.3), ROBOT_3R.max_acceleration)
         assert np.max(np.abs(slow.velocities)) > 0.29                # the limit is reached
         assert all(r.successful for r in planar.set_parameters(max_velocity=[0.2, 0.4, 0.6],
                                                                 max_acceleration=[1, 1, 1]))
         planar.plan(paper_request())
-        per = check_controller_contract(planar.traj.wait_count(n0 + 4)[-1], ROBOT_3R.joint_names)
+        per = check_controller_contract(planar.wait_trajectories(n0 + 4)[-1], ROBOT_3R.joint_names)
         check_limits(per, np.array([0.2, 0.4, 0.6]), np.ones(3))
     finally:
         planar.set_parameters(velocity_scaling=1.0, max_velocity=[], max_acceleration=[])
 
 
 def test_sample_period_parameter(planar: PlannerUnderTest) -> None:
-    n0 = planar.traj.count()
+    n0 = len(planar.traj)
     try:
         assert all(r.successful for r in planar.set_parameters(sample_period=0.05))
         planar.plan(paper_request())
-        arr = check_controller_contract(planar.traj.wait_count(n0 + 1)[-1], ROBOT_3R.joint_names)
+        arr = check_controller_contract(planar.wait_trajectories(n0 + 1)[-1], ROBOT_3R.joint_names)
         steps = np.diff(arr.t)
         assert_allclose(steps[:-1], 0.05, atol=1e-9)
         assert 0.0 < steps[-1] <= 0.05 + 1e-9
@@ -507,29 +399,29 @@ def _from_state_request() -> GetPlan.Request:
     return request(start, pose_3r(*GOAL_3R))
 
 
-def test_plan_from_joint_states(planar: PlannerUnderTest, helper: Helper, rosout: Collector) -> None:
-    node = helper.node
-    pub = node.create_publisher(JointState, '/joint_states', 10)
+def test_plan_from_joint_states(planar: PlannerUnderTest, helper: Any, rosout: Collector) -> None:
+    pub = helper.create_publisher(JointState, '/joint_states', 10)
     try:
-        wait_for(lambda: pub.get_subscription_count() > 0, what='/joint_states subscriber')
+        wait_for_subscribers(pub, 1, DEADLINE, watch=planar.watch)
         q_s = np.array([0.4, 0.7, -0.5])
         # shuffled order plus a joint the robot does not have
         good = _joint_state(['joint3', 'gripper', 'joint1', 'joint2'], [q_s[2], 9.0, q_s[0], q_s[1]])
-        n_before = planar.traj.count()
+        n_before = len(planar.traj)
 
         def attempt() -> GetPlan.Response | None:
             pub.publish(good)
             resp = planar.plan(_from_state_request())
             return resp if resp.plan.poses else None
 
-        wait_for(attempt, what='a plan from the published joint state', poll=0.05)
-        arr = check_controller_contract(planar.traj.wait_count(n_before + 1)[-1],
+        wait_until(attempt, DEADLINE, what='a plan from the published joint state',
+                   watch=planar.watch)
+        arr = check_controller_contract(planar.wait_trajectories(n_before + 1)[-1],
                                         ROBOT_3R.joint_names)
         assert_allclose(arr.positions[0], q_s, atol=1e-12)
         assert_allclose(fk_3r(arr.positions[-1:])[0], GOAL_3R, atol=1e-8)
 
         # hostile messages, each with positions that would visibly change the start
-        k0 = rosout.count()
+        k0 = len(rosout)
         hostile = [
             (_joint_state(['joint1', 'joint2', 'joint3'], [1.0, 1.0]), 'names but 2 positions'),
             (_joint_state(['joint1', 'joint2', 'bogus'], [1.0, 1.0, 1.0]), "missing robot joints ['joint3']"),
@@ -544,14 +436,15 @@ def test_plan_from_joint_states(planar: PlannerUnderTest, helper: Helper, rosout
                 pub.publish(msg)
                 return next((m for m in rosout_since(rosout, k0, planar.logger, WARN)
                              if text in m.msg), None)
-            wait_for(published_and_warned, what=f'warning {text!r}', poll=0.05)
-        n1 = planar.traj.count()
+            wait_until(published_and_warned, DEADLINE, what=f'warning {text!r}',
+                       watch=planar.watch)
+        n1 = len(planar.traj)
         resp = planar.plan(_from_state_request())
         assert len(resp.plan.poses) > 0
-        arr = check_controller_contract(planar.traj.wait_count(n1 + 1)[-1], ROBOT_3R.joint_names)
+        arr = check_controller_contract(planar.wait_trajectories(n1 + 1)[-1], ROBOT_3R.joint_names)
         assert_allclose(arr.positions[0], q_s, atol=1e-12)       # still the last valid state
     finally:
-        node.destroy_publisher(pub)
+        helper.destroy_publisher(pub)
 
 
 # --------------------------------------------------------------------------- 6-joint arm
@@ -562,10 +455,10 @@ def test_ur5e_line_and_rotation(ur5e: PlannerUnderTest) -> None:
     T_a = robot.fk(q0)
     axis = np.array([1.0, 2.0, -1.0]) / math.sqrt(6.0)
     T_b = make_transform(T_a[:3, 3] + [0.12, -0.08, 0.1], so3_exp(math.radians(30.0) * axis) @ T_a[:3, :3])
-    n0 = ur5e.traj.count()
+    n0 = len(ur5e.traj)
     resp = ur5e.plan(request(cv.matrix_to_pose_stamped(T_a, ''), cv.matrix_to_pose_stamped(T_b, '')))
     assert len(resp.plan.poses) > 0
-    msgs = ur5e.traj.wait_count(n0 + 1)
+    msgs = ur5e.wait_trajectories(n0 + 1)
     arr = check_controller_contract(msgs[-1], robot.joint_names)
     check_limits(arr, robot.max_velocity, robot.max_acceleration)
     tool = robot.fk(arr.positions)
@@ -584,33 +477,33 @@ def test_ur5e_line_and_rotation(ur5e: PlannerUnderTest) -> None:
 
 # --------------------------------------------------------------------------- process
 
-def test_sigint_exits_zero(tmp_path: FsPath, helper: Helper) -> None:
-    proc = NodeProcess(['--ros-args', '-p', 'robot:=planar_3r', '-r', '__ns:=/sigint'],
-                       tmp_path / 'sigint.log')
-    client = helper.node.create_client(GetPlan, '/sigint/geodesic_planner/plan')
+def test_sigint_exits_zero(start_node: Any, helper: Any) -> None:
+    proc = start_node('geodesic_planner_node', '-r', '__ns:=/sigint',
+                      params={'robot': 'planar_3r'})
+    client = helper.create_client(GetPlan, '/sigint/geodesic_planner/plan')
     try:
-        assert client.wait_for_service(timeout_sec=DEADLINE), proc.output()
+        wait_for_service(client, DEADLINE, watch=[proc])
     finally:
-        helper.node.destroy_client(client)
+        helper.destroy_client(client)
     rc = proc.stop(signal.SIGINT)
-    out = proc.output()
+    out = proc.log_text()
     assert rc == 0, out
+    assert proc.signals_sent == [signal.SIGINT]          # no escalation was needed
     assert 'Traceback' not in out
 
 
-@pytest.mark.parametrize(('args', 'text'), [
-    (['-p', 'robot:=no_such_robot'], "cannot load robot 'no_such_robot'"),
-    (['-p', 'velocity_scaling:=2.0'], 'velocity_scaling'),
-    (['-p', 'max_velocity:=[1.0, 2.0]'], 'max_velocity'),
-    (['-p', 'robot:=/nonexistent/arm.urdf'], 'cannot load'),
+@pytest.mark.parametrize(('params', 'text'), [
+    ({'robot': 'no_such_robot'}, "cannot load robot 'no_such_robot'"),
+    ({'velocity_scaling': 2.0}, 'velocity_scaling'),
+    ({'max_velocity': [1.0, 2.0]}, 'max_velocity'),
+    ({'robot': '/nonexistent/arm.urdf'}, 'cannot load'),
+    ({'robot': 3}, 'robot'),
 ])
-def test_bad_start_exits_nonzero_without_traceback(tmp_path: FsPath, args: list[str], text: str) -> None:
-    proc = NodeProcess(['--ros-args', *args], tmp_path / 'bad.log')
-    try:
-        rc = proc.proc.wait(DEADLINE)
-    finally:
-        proc.stop()
-    out = proc.output()
+def test_bad_start_exits_nonzero_without_traceback(start_node: Any, params: dict[str, Any],
+                                                    text: str) -> None:
+    proc = start_node('geodesic_planner_node', params=params)
+    rc = proc.wait(DEADLINE)
+    out = proc.log_text()
     assert rc == 1, out
     assert 'cannot start' in out and text in out, out
     assert 'Traceback' not in out, out
@@ -626,17 +519,12 @@ BRANCHING_URDF = """<robot name="branchy">
 """
 
 
-def test_non_serial_urdf_exits_nonzero(tmp_path: FsPath) -> None:
-    pytest.importorskip('geodesic_planner.urdf')
+def test_non_serial_urdf_exits_nonzero(start_node: Any, tmp_path: FsPath) -> None:
     params = tmp_path / 'params.yaml'
-    import yaml
     params.write_text(yaml.safe_dump(
         {'geodesic_planner': {'ros__parameters': {'robot_description': BRANCHING_URDF}}}))
-    proc = NodeProcess(['--ros-args', '--params-file', str(params)], tmp_path / 'urdf.log')
-    try:
-        rc = proc.proc.wait(DEADLINE)
-    finally:
-        proc.stop()
-    out = proc.output()
+    proc = start_node('geodesic_planner_node', '--params-file', str(params))
+    rc = proc.wait(DEADLINE)
+    out = proc.log_text()
     assert rc == 1, out
     assert 'cannot load robot_description' in out and 'Traceback' not in out, out
