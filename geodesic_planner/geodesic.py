@@ -10,6 +10,7 @@ pose from products of spatial generators, see kinematics.py), batched over many 
 """
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass
 
@@ -35,6 +36,20 @@ class GeodesicEquations:
         self.metric = metric
         self._mask = metric.mask
         self._eps_eye = metric.epsilon * np.eye(robot.dof)
+        self._cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def _generators(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """robot.generators(q), remembering the last few batches (solve_bvp evaluates the
+        right-hand side and its Jacobian at the same points)."""
+        key = q.tobytes()
+        hit = self._cache.get(key)
+        if hit is not None:
+            return hit
+        out = self.robot.generators(q)
+        if len(self._cache) >= 4:
+            self._cache.pop(next(iter(self._cache)))
+        self._cache[key] = out
+        return out
 
     def _solve(self, G: np.ndarray, rhs: np.ndarray, q: np.ndarray) -> np.ndarray:
         try:
@@ -61,7 +76,8 @@ class GeodesicEquations:
         Raises:
             SingularMetricError: G is singular at one of the configurations.
         """
-        X, T = self.robot.generators(q)
+        q = np.ascontiguousarray(q, dtype=float)
+        X, T = self._generators(q)
         Tn = T[:, None]
         Y = X @ Tn                                   # ∂T/∂q_k
         YO = Y * self._mask
@@ -149,7 +165,7 @@ def solve_geodesic_bvp(
     *,
     tol: float = 1e-8,
     max_nodes: int = 2000,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, SolverReport]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, SolverReport]:
     """Solve the geodesic two-point BVP q(0) = q_a, q(1) = q_b with scipy's solve_bvp.
 
     Args:
@@ -158,7 +174,7 @@ def solve_geodesic_bvp(
         q_guess, v_guess: initial guess of q and q' at the nodes, (m, dof).
         tol: solve_bvp's relative collocation tolerance.
     Returns:
-        (s, q, v, report) at the solution's mesh.
+        (s, q, q', q'', report) at the solution's mesh (q'' = the equations' value at the nodes).
     Raises:
         BVPError: no convergence (status, message and residual in the error).
         SingularMetricError: the metric is singular along the way.
@@ -205,7 +221,7 @@ def solve_geodesic_bvp(
     bc_res = float(max(np.abs(q[0] - q_a).max(), np.abs(q[-1] - q_b).max()))
     report = SolverReport(int(sol.status), str(sol.message), int(sol.niter), max_res, int(sol.x.size),
                           bc_residual=bc_res)
-    return sol.x, q, sol.y[n:].T, report
+    return sol.x, q, sol.y[n:].T, sol.yp[n:].T, report
 
 
 class GeodesicPath(JointPath):
@@ -224,17 +240,22 @@ class GeodesicPath(JointPath):
 
     def __init__(self, equations: GeodesicEquations, s_nodes: np.ndarray, q_nodes: np.ndarray,
                  v_nodes: np.ndarray, solver: SolverReport,
-                 ik_start: object | None = None, ik_goal: object | None = None) -> None:
+                 ik_start: object | None = None, ik_goal: object | None = None,
+                 a_nodes: np.ndarray | None = None) -> None:
         self.equations = equations
         self.robot = equations.robot
         self.metric = equations.metric
         self.s_nodes, self.q_nodes, self.v_nodes = s_nodes, q_nodes, v_nodes
-        self.a_nodes = equations.acceleration(q_nodes, v_nodes)
+        self.a_nodes = equations.acceleration(q_nodes, v_nodes) if a_nodes is None else a_nodes
         self._spline = QuinticHermite(s_nodes, q_nodes, v_nodes, self.a_nodes)
         self.solver = solver
         self.ik_start = ik_start
         self.ik_goal = ik_goal
-        self.length = float(np.mean(self.metric.speed(self.robot, q_nodes, v_nodes)))
+
+    @functools.cached_property
+    def length(self) -> float:
+        """Metric length = the constant metric speed over s ∈ [0, 1] (mean over the mesh)."""
+        return float(np.mean(self.metric.speed(self.robot, self.q_nodes, self.v_nodes)))
 
     @property
     def q_start(self) -> np.ndarray:
@@ -270,3 +291,43 @@ class GeodesicPath(JointPath):
         a = self.equations.acceleration(q, dq)
         G = self.metric.tensor(self.robot, q)
         return np.linalg.norm(np.einsum('nij,nj->ni', G, ddq - a), axis=-1)
+
+
+def collocation_rms(equations: GeodesicEquations, s: np.ndarray, q: np.ndarray, v: np.ndarray,
+                    a: np.ndarray) -> np.ndarray:
+    """RMS relative residual per mesh interval of the cubic collocation interpolant of (q, v).
+
+    The same estimate scipy's solve_bvp uses to accept a mesh (5-point Lobatto quadrature of
+    ``|S' − f(S)| / (1 + |f|)``, S the cubic Hermite interpolant of y = (q, q') with slopes
+    f = (q', q'')), so a mesh that passes here on an exact geodesic passes in solve_bvp in one round.
+
+    Args:
+        s: mesh (m,); q, v, a: positions, q', q'' at the mesh, (m, dof).
+    Returns:
+        (m - 1,) rms residuals.
+    """
+    h = np.diff(s)[:, None]
+    y = np.hstack([q, v])
+    f = np.hstack([v, a])
+    y0, y1, f0, f1 = y[:-1], y[1:], f[:-1], f[1:]
+    offsets = (0.5, 0.5 + 0.5 * np.sqrt(3.0 / 7.0), 0.5 - 0.5 * np.sqrt(3.0 / 7.0))
+    ys, dys = [], []
+    for t in offsets:
+        h00, h10, h01, h11 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t, -2 * t**3 + 3 * t**2, t**3 - t**2
+        d00, d10, d01, d11 = 6 * t**2 - 6 * t, 3 * t**2 - 4 * t + 1, -6 * t**2 + 6 * t, 3 * t**2 - 2 * t
+        ys.append(h00 * y0 + h10 * h * f0 + h01 * y1 + h11 * h * f1)
+        dys.append((d00 * y0 + d01 * y1) / h + d10 * f0 + d11 * f1)
+    Y = np.vstack(ys)
+    n = q.shape[1]
+    F = np.hstack([Y[:, n:], equations.acceleration(Y[:, :n], Y[:, n:])])
+    R = (np.vstack(dys) - F) / (1.0 + np.abs(F))
+    r2 = np.sum(R * R, axis=1).reshape(3, -1)
+    return np.sqrt(0.5 * (32.0 / 45.0 * r2[0] + 49.0 / 90.0 * (r2[1] + r2[2])))
+
+
+def refine_mesh(s: np.ndarray, rms: np.ndarray, tol: float) -> np.ndarray:
+    """solve_bvp's mesh refinement: 1 node into intervals with tol < rms < 100 tol, 2 beyond."""
+    one = np.nonzero((rms > tol) & (rms < 100 * tol))[0]
+    two = np.nonzero(rms >= 100 * tol)[0]
+    return np.sort(np.concatenate([
+        s, 0.5 * (s[one] + s[one + 1]), (2 * s[two] + s[two + 1]) / 3, (s[two] + 2 * s[two + 1]) / 3]))

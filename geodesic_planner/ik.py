@@ -81,7 +81,8 @@ def dls_batch(
         scale = np.einsum('nii->ni', JtJ).max(axis=1) + 1e-12
         A = JtJ + (lam * scale)[:, None, None] * np.eye(n)
         dq = -np.linalg.solve(A, g[..., None])[..., 0]
-        q_new = q + dq
+        q_new = np.clip(q + dq, robot.lower, robot.upper)  # projected step: stay within limits
+        dq = q_new - q
         X_new, T_new = robot.generators(q_new)
         e_new = embed12(T_new) * w - f_star
         cost_new = np.einsum('ni,ni->n', e_new, e_new)

@@ -126,6 +126,10 @@ class Chain:
         self._prismatic = np.array([j.kind == PRISMATIC for j in self.joints])
         self._khat = np.array([_hat3(a) for a in self._axes])
         self._khat2 = self._khat @ self._khat
+        self._zaxis = [bool(np.allclose(a, [0.0, 0.0, 1.0])) for a in self._axes]
+        self._all_z = all(self._zaxis)
+        self._revolute_mask = (~self._prismatic).astype(float)[:, None]
+        self._all_revolute = not bool(self._prismatic.any())
         self.joint_names: list[str] = [j.name for j in self.joints]
         if len(set(self.joint_names)) != len(self.joint_names):
             raise KinematicsError(f'robot {name!r}: duplicate joint names {self.joint_names}')
@@ -198,38 +202,43 @@ class Chain:
         return np.all((q >= self.lower - tol) & (q <= self.upper + tol), axis=-1)
 
     # ------------------------------------------------------------------ kinematics
-    def _joint_motion(self, q: np.ndarray) -> np.ndarray:
-        """Joint transforms M_i(q_i), shape (N, dof, 4, 4) for q of shape (N, dof)."""
-        N = q.shape[0]
-        M = np.zeros((N, self.dof, 4, 4))
-        M[..., 3, 3] = 1.0
-        s = np.sin(q)[..., None, None]
-        c = np.cos(q)[..., None, None]
-        R = np.eye(3) + s * self._khat + (1.0 - c) * self._khat2
-        pr = self._prismatic
-        R = np.where(pr[None, :, None, None], np.eye(3), R)
-        M[..., :3, :3] = R
-        M[..., :3, 3] = np.where(pr[None, :, None], q[..., None] * self._axes, 0.0)
-        return M
-
     def frames(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Joint frames and tool pose.
 
         Args:
             q: joint positions, shape (N, dof).
         Returns:
-            (Tj, T): Tj (N, dof, 4, 4) base->joint-frame transforms (before each joint's motion),
-            T (N, 4, 4) base->tool.
+            (Tj, T): Tj (N, dof, 4, 4) base->joint-frame transforms (the frame in which joint i's
+            axis is given, before its motion), T (N, 4, 4) base->tool.
         """
         N = q.shape[0]
-        M = self._joint_motion(q)
         Tj = np.empty((N, self.dof, 4, 4))
-        T = np.broadcast_to(self._fixed[0], (N, 4, 4))
+        T = np.empty((N, 4, 4))
+        T[:] = self._fixed[0]
+        sq, cq = np.sin(q), np.cos(q)
+        MF = np.empty((N, 4, 4))
         for i in range(self.dof):
             Tj[:, i] = T
-            T = T @ M[:, i] @ self._fixed[i + 1]
-        # Tj[i] must be the frame in which joint i's axis is expressed: F0 M1 F1 ... F_{i}
-        # (computed above as the product *before* M_i, i.e. including F_i's predecessor chain).
+            F = self._fixed[i + 1]
+            if self._zaxis[i]:
+                # M_i F_{i+1} with M_i a rotation about / translation along z: row operations on F.
+                if self._prismatic[i]:
+                    MF[:] = F
+                    MF[:, 2] += q[:, i, None] * F[3]
+                else:
+                    c, s_ = cq[:, i, None], sq[:, i, None]
+                    MF[:, 0] = c * F[0] - s_ * F[1]
+                    MF[:, 1] = s_ * F[0] + c * F[1]
+                    MF[:, 2:] = F[2:]
+            else:
+                MF[:] = F
+                if self._prismatic[i]:
+                    MF[:, :3] += q[:, i, None, None] * np.outer(self._axes[i], F[3])
+                else:
+                    R = (np.eye(3) + sq[:, i, None, None] * self._khat[i]
+                         + (1.0 - cq[:, i, None, None]) * self._khat2[i])
+                    MF[:, :3] = R @ F[:3]
+            T = T @ MF
         return Tj, T
 
     def fk(self, q: np.ndarray) -> np.ndarray:
@@ -247,14 +256,26 @@ class Chain:
             (X, T): X (N, dof, 4, 4) with ``∂T/∂q_k = X_k T``; T (N, 4, 4).
         """
         Tj, T = self.frames(q)
-        R = Tj[..., :3, :3]
+        if self._all_z:
+            u = Tj[..., :3, 2]
+        else:
+            u = np.einsum('nkab,kb->nka', Tj[..., :3, :3], self._axes)  # axis in base frame
         p = Tj[..., :3, 3]
-        u = np.einsum('nkab,kb->nka', R, self._axes)  # axis in base frame
         X = np.zeros(Tj.shape)
-        rev = ~self._prismatic
-        w = np.where(rev[None, :, None], u, 0.0)
-        X[..., :3, :3] = _hat3_batched(w)
-        X[..., :3, 3] = np.where(rev[None, :, None], np.cross(p, w), u)
+        rev = self._revolute_mask
+        w = u * rev
+        X[..., 0, 1] = -w[..., 2]
+        X[..., 0, 2] = w[..., 1]
+        X[..., 1, 0] = w[..., 2]
+        X[..., 1, 2] = -w[..., 0]
+        X[..., 2, 0] = -w[..., 1]
+        X[..., 2, 1] = w[..., 0]
+        # v = p × ω for revolute joints, the axis for prismatic ones
+        X[..., 0, 3] = p[..., 1] * w[..., 2] - p[..., 2] * w[..., 1]
+        X[..., 1, 3] = p[..., 2] * w[..., 0] - p[..., 0] * w[..., 2]
+        X[..., 2, 3] = p[..., 0] * w[..., 1] - p[..., 1] * w[..., 0]
+        if not self._all_revolute:
+            X[..., :3, 3] += u * (1.0 - rev)
         return X, T
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:

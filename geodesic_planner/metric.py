@@ -17,7 +17,7 @@ from .kinematics import Chain
 
 METRICS = ('paper', 'position')
 #: Default joint-space regularisation for arms with more than 6 joints (rad⁻² · m²).
-DEFAULT_REDUNDANT_EPSILON = 1e-3
+DEFAULT_REDUNDANT_EPSILON = 1e-4
 #: G is called singular when its smallest eigenvalue is below this fraction of the largest.
 SINGULAR_RCOND = 1e-9
 
