@@ -11,6 +11,7 @@ pose from products of spatial generators, see kinematics.py), batched over many 
 from __future__ import annotations
 
 import functools
+import threading
 import warnings
 from dataclasses import dataclass
 
@@ -36,7 +37,19 @@ class GeodesicEquations:
         self.metric = metric
         self._mask = metric.mask
         self._eps_eye = metric.epsilon * np.eye(robot.dof)
-        self._cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+        self._local = threading.local()  # per-thread caches: planners may be shared by threads
+
+    @property
+    def _cache(self) -> dict[bytes, tuple[np.ndarray, np.ndarray]]:
+        if not hasattr(self._local, 'gen'):
+            self._local.gen = {}
+        return self._local.gen  # type: ignore[no-any-return]
+
+    @property
+    def _acc_cache(self) -> dict[bytes, np.ndarray]:
+        if not hasattr(self._local, 'acc'):
+            self._local.acc = {}
+        return self._local.acc  # type: ignore[no-any-return]
 
     def _generators(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """robot.generators(q), remembering the last few batches (solve_bvp evaluates the
@@ -61,8 +74,21 @@ class GeodesicEquations:
                 f'for robot {self.robot.name!r}') from None
 
     def acceleration(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Geodesic acceleration q'' for q, v of shape (N, dof) -> (N, dof)."""
-        return self.evaluate(q, v, jacobians=False)[0]
+        """Geodesic acceleration q'' for q, v of shape (N, dof) -> (N, dof).
+
+        The last few results are remembered by value: solve_bvp evaluates the same points again
+        after its line search and for its residual estimate.
+        """
+        q = np.ascontiguousarray(q, dtype=float)
+        v = np.ascontiguousarray(v, dtype=float)
+        key = q.tobytes() + v.tobytes()
+        hit = self._acc_cache.get(key)
+        if hit is None:
+            hit = self.evaluate(q, v, jacobians=False)[0]
+            if len(self._acc_cache) >= 8:
+                self._acc_cache.pop(next(iter(self._acc_cache)))
+            self._acc_cache[key] = hit
+        return hit.copy()
 
     def evaluate(self, q: np.ndarray, v: np.ndarray, jacobians: bool = True
                  ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
