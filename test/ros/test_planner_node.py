@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import signal
+import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path as FsPath
 from typing import Any
@@ -312,6 +313,86 @@ def test_quaternion_normalised_when_close(planar: PlannerUnderTest) -> None:
     arr = check_controller_contract(planar.wait_trajectories(n0 + 1)[-1], ROBOT_3R.joint_names)
     assert_allclose(arr.positions[0], ik_3r(*START_3R), atol=1e-8)
     check_line_phi_3r(arr)
+
+
+def test_tolerance_for_unreachable_pose(planar: PlannerUnderTest, rosout: Collector) -> None:
+    # 5 cm out of the arm's plane: only reachable within a tolerance (3 joints, 6-D pose)
+    goal = pose_3r(*GOAL_3R)
+    goal.pose.position.z = 0.05
+    n0, k0 = len(planar.traj), len(rosout)
+    assert len(planar.plan(request(pose_3r(*START_3R), goal, tolerance=0.0)).plan.poses) == 0
+    wait_log(rosout, k0, planar.logger, ERROR, 'IK failed')
+    assert len(planar.plan(request(pose_3r(*START_3R), goal, tolerance=0.01)).plan.poses) == 0
+    resp = planar.plan(request(pose_3r(*START_3R), goal, tolerance=0.1))
+    assert len(resp.plan.poses) > 0
+    msgs = planar.wait_trajectories(n0 + 1)
+    assert len(msgs) == n0 + 1                       # only the successful request published
+    arr = check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
+    # the nearest reachable pose: same x, y, phi in the plane
+    assert_allclose(fk_3r(arr.positions[-1:])[0], GOAL_3R, atol=1e-6)
+    check_line_phi_3r(arr)
+
+
+def test_plan_timeout_fails_request_and_publishes_nothing(planar: PlannerUnderTest,
+                                                          rosout: Collector) -> None:
+    n0, k0 = len(planar.traj), len(rosout)
+    try:
+        assert all(r.successful for r in planar.set_parameters(plan_timeout=1e-6))
+        assert len(planar.plan(paper_request()).plan.poses) == 0
+        wait_log(rosout, k0, planar.logger, ERROR, 'timed out after 1e-06 s')
+    finally:
+        assert all(r.successful for r in planar.set_parameters(plan_timeout=5.0))
+    assert len(planar.plan(paper_request()).plan.poses) > 0
+    msgs = planar.wait_trajectories(n0 + 1)
+    assert len(msgs) == n0 + 1                       # the abandoned plan was never published
+    check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
+
+
+def test_concurrent_clients_each_success_published_once(planar: PlannerUnderTest, helper: Any,
+                                                         rosout: Collector) -> None:
+    clients = [helper.create_client(GetPlan, f'{planar.name}/plan') for _ in range(4)]
+    per_client = 6
+    results: list[tuple[int, int, bool]] = []
+    errors: list[BaseException] = []
+    lock = threading.Lock()
+    n0, k0 = len(planar.traj), len(rosout)
+
+    def run(c: int) -> None:
+        try:
+            for i in range(per_client):
+                good = (c + i) % 2 == 0
+                req = paper_request() if good else _nan_goal()
+                resp = call_service(clients[c], req, DEADLINE, watch=planar.watch)
+                with lock:
+                    results.append((c, len(resp.plan.poses), good))
+        except BaseException as err:  # noqa: BLE001 - reported by the main thread
+            errors.append(err)
+
+    try:
+        for client in clients:
+            wait_for_service(client, DEADLINE, watch=planar.watch)
+        threads = [threading.Thread(target=run, args=(c,)) for c in range(4)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(4 * DEADLINE)
+        assert not errors, errors
+        assert len(results) == 4 * per_client             # every request answered
+        assert all((n > 0) == good for _, n, good in results)
+        successes = sum(good for _, _, good in results)
+        # a sentinel plan after all the others: in-order delivery from the one publisher means
+        # that any duplicate would arrive before the sentinel's message
+        assert len(planar.plan(paper_request()).plan.poses) > 0
+        msgs = planar.wait_trajectories(n0 + successes + 1)
+        assert len(msgs) == n0 + successes + 1
+        for msg in msgs[n0:]:
+            check_controller_contract(msg, ROBOT_3R.joint_names)
+        wait_until(lambda: len(rosout_since(rosout, k0, planar.logger, INFO)) >= successes + 1,
+                   DEADLINE, what='a log line per plan')
+        assert len(rosout_since(rosout, k0, planar.logger, ERROR)) == 4 * per_client - successes
+    finally:
+        for client in clients:
+            helper.destroy_client(client)
 
 
 # --------------------------------------------------------------------------- parameters
