@@ -106,6 +106,7 @@ class Chain:
         self.base_link = base_link
         self.tip_link = tip_link
         self._fixed = np.array([np.asarray(F, dtype=float) for F in fixed])
+        self._fixed_given = self._fixed.copy()
         if self._fixed.shape[1:] != (4, 4) or not np.all(np.isfinite(self._fixed)):
             raise KinematicsError(f'robot {name!r}: fixed transforms must be finite 4x4 matrices')
         axes = []
@@ -122,12 +123,19 @@ class Chain:
             if not (j.max_velocity > 0 and j.max_acceleration > 0):
                 raise KinematicsError(f'robot {name!r}: joint {j.name!r} needs positive velocity and '
                                       'acceleration limits')
-        self._axes = np.array(axes)
+        # Fold every joint axis u into the fixed transforms: M(q) about/along u equals
+        # C Rz(q) Cᵀ (C Tz(q) Cᵀ) with C e_z = u, so the hot path only handles z axes.
+        fixed_z = [F.copy() for F in self._fixed]
+        for i, u in enumerate(axes):
+            if np.allclose(u, [0.0, 0.0, 1.0]):
+                continue
+            C = np.eye(4)
+            C[:3, :3] = _rotation_z_to(u)
+            fixed_z[i] = fixed_z[i] @ C
+            fixed_z[i + 1] = C.T @ fixed_z[i + 1]
+        self._fixed = np.array(fixed_z)
+        self._joint_axes = np.array(axes)
         self._prismatic = np.array([j.kind == PRISMATIC for j in self.joints])
-        self._khat = np.array([_hat3(a) for a in self._axes])
-        self._khat2 = self._khat @ self._khat
-        self._zaxis = [bool(np.allclose(a, [0.0, 0.0, 1.0])) for a in self._axes]
-        self._all_z = all(self._zaxis)
         self._revolute_mask = (~self._prismatic).astype(float)[:, None]
         self._all_revolute = not bool(self._prismatic.any())
         self.joint_names: list[str] = [j.name for j in self.joints]
@@ -175,7 +183,7 @@ class Chain:
             Joint(n, j.kind, j.axis, j.lower, j.upper, float(v), float(a))
             for n, j, v, a in zip(names, self.joints, mv, ma)
         ]
-        return Chain(self.name, joints, list(self._fixed), base_link=self.base_link,
+        return Chain(self.name, joints, list(self._fixed_given), base_link=self.base_link,
                      tip_link=self.tip_link, home=self.home)
 
     # ------------------------------------------------------------------ input checks
@@ -220,24 +228,15 @@ class Chain:
         for i in range(self.dof):
             Tj[:, i] = T
             F = self._fixed[i + 1]
-            if self._zaxis[i]:
-                # M_i F_{i+1} with M_i a rotation about / translation along z: row operations on F.
-                if self._prismatic[i]:
-                    MF[:] = F
-                    MF[:, 2] += q[:, i, None] * F[3]
-                else:
-                    c, s_ = cq[:, i, None], sq[:, i, None]
-                    MF[:, 0] = c * F[0] - s_ * F[1]
-                    MF[:, 1] = s_ * F[0] + c * F[1]
-                    MF[:, 2:] = F[2:]
-            else:
+            # M_i F_{i+1} with M_i a rotation about / translation along z: row operations on F.
+            if self._prismatic[i]:
                 MF[:] = F
-                if self._prismatic[i]:
-                    MF[:, :3] += q[:, i, None, None] * np.outer(self._axes[i], F[3])
-                else:
-                    R = (np.eye(3) + sq[:, i, None, None] * self._khat[i]
-                         + (1.0 - cq[:, i, None, None]) * self._khat2[i])
-                    MF[:, :3] = R @ F[:3]
+                MF[:, 2] += q[:, i, None] * F[3]
+            else:
+                c, s_ = cq[:, i, None], sq[:, i, None]
+                MF[:, 0] = c * F[0] - s_ * F[1]
+                MF[:, 1] = s_ * F[0] + c * F[1]
+                MF[:, 2:] = F[2:]
             T = T @ MF
         return Tj, T
 
@@ -256,10 +255,7 @@ class Chain:
             (X, T): X (N, dof, 4, 4) with ``∂T/∂q_k = X_k T``; T (N, 4, 4).
         """
         Tj, T = self.frames(q)
-        if self._all_z:
-            u = Tj[..., :3, 2]
-        else:
-            u = np.einsum('nkab,kb->nka', Tj[..., :3, :3], self._axes)  # axis in base frame
+        u = Tj[..., :3, 2]  # joint axes in the base frame (all axes were folded onto z)
         p = Tj[..., :3, 3]
         X = np.zeros(Tj.shape)
         rev = self._revolute_mask
@@ -322,6 +318,19 @@ class Chain:
 def embed12(M: np.ndarray) -> np.ndarray:
     """The 12-vector (p, n, o, a) of 4x4 matrices (..., 4, 4): columns 3, 0, 1, 2 of the top 3 rows."""
     return np.concatenate([M[..., :3, 3], M[..., :3, 0], M[..., :3, 1], M[..., :3, 2]], axis=-1)
+
+
+def _rotation_z_to(u: np.ndarray) -> np.ndarray:
+    """A rotation matrix C with C @ e_z = u (u a unit vector)."""
+    z = np.array([0.0, 0.0, 1.0])
+    c = float(np.dot(z, u))
+    if c > 1 - 1e-15:
+        return np.eye(3)
+    if c < -1 + 1e-15:
+        return np.diag([1.0, -1.0, -1.0])
+    k = np.cross(z, u)
+    K = _hat3(k)
+    return np.eye(3) + K + K @ K / (1.0 + c)
 
 
 def _hat3(w: np.ndarray) -> np.ndarray:
