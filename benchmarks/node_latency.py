@@ -1,0 +1,252 @@
+"""Planner node latency: service request -> JointTrajectory received by a subscriber.
+
+Starts the real node (console script ``geodesic_planner_node``) per robot, then from this process:
+
+1. sequential requests (after warm-up): latency from ``call_async`` to the trajectory arriving in
+   a subscription callback, and to the service response; p50/p90/max in ms;
+2. sustained load: 4 concurrent clients sending back-to-back requests; plans per second.
+
+Run inside the loopback-only network namespace (ROS must not leave the machine)::
+
+    bash scripts/netns.sh .venv/bin/python benchmarks/node_latency.py [--requests 100] [--robots planar_3r ur5e]
+
+Prints a table. Not a test: nothing is asserted (issue 6 targets: ur5e median <= 15 ms, >= 50
+plans/s with 4 clients).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import platform
+import signal
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from geodesic_planner import load_robot, netns
+from geodesic_planner.ros import conversions as cv
+from geodesic_planner.transforms import make_transform, so3_exp
+
+DEADLINE = 60.0
+
+
+@dataclass
+class Result:
+    robot: str
+    points: int
+    traj_ms: np.ndarray        # request -> trajectory received, per request
+    resp_ms: np.ndarray        # request -> response received
+    rate: float                # sustained plans/s, 4 clients
+    rate_requests: int
+    rate_failures: int
+
+
+def requests_for(robot_name: str, n: int, seed: int = 0) -> list[Any]:
+    """``n`` GetPlan requests: the paper's 3R poses, or a line + 30 deg rotation for 6-joint arms,
+    with small random goal offsets (so no two requests are the same)."""
+    from nav_msgs.srv import GetPlan
+
+    rng = np.random.default_rng(seed)
+    robot = load_robot(robot_name)
+    out = []
+    for _ in range(n):
+        if robot_name == 'planar_3r':
+            a = make_transform([2.5, 1.5, 0.0], so3_exp([0.0, 0.0, math.radians(30.0)]))
+            dx = rng.uniform(-0.02, 0.02, 2)
+            b = make_transform([1.5 + dx[0], 2.5 + dx[1], 0.0],
+                               so3_exp([0.0, 0.0, math.atan2(0.7, 0.714)]))
+        else:
+            q0 = robot.home + np.array([0.3, 0.37, -0.17, -0.13, 0.07, 0.2])[:robot.dof]
+            a = robot.fk(q0)
+            axis = np.array([1.0, 2.0, -1.0]) / math.sqrt(6.0)
+            b = make_transform(a[:3, 3] + np.array([0.12, -0.08, 0.1]) + rng.uniform(-0.01, 0.01, 3),
+                               so3_exp(math.radians(30.0) * axis) @ a[:3, :3])
+        out.append(GetPlan.Request(start=cv.matrix_to_pose_stamped(a, ''),
+                                   goal=cv.matrix_to_pose_stamped(b, '')))
+    return out
+
+
+class Bench:
+    """Helper node in this process, spun by a MultiThreadedExecutor in a thread."""
+
+    def __init__(self) -> None:
+        import rclpy
+        from rclpy.executors import MultiThreadedExecutor
+
+        rclpy.init()
+        self.node = rclpy.create_node('node_latency_bench')
+        self.executor = MultiThreadedExecutor(num_threads=4)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def close(self) -> None:
+        import rclpy
+
+        self.executor.shutdown(timeout_sec=5)
+        self.node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def start_node(robot: str, ns: str, log_dir: Path) -> subprocess.Popen:
+    exe = Path(sysconfig.get_path('scripts')) / 'geodesic_planner_node'
+    log = open(log_dir / f'{robot}.log', 'wb')  # noqa: SIM115 - lives as long as the process
+    return subprocess.Popen([str(exe), '--ros-args', '-r', f'__ns:={ns}', '-p', f'robot:={robot}',
+                             '--log-level', 'warn'],
+                            stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                            process_group=0)
+
+
+def stop_node(proc: subprocess.Popen) -> int:
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+        if proc.poll() is not None:
+            break
+        proc.send_signal(sig)
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            continue
+    return proc.returncode
+
+
+def measure(bench: Bench, robot: str, n_requests: int, warmup: int, per_client: int,
+            log_dir: Path) -> Result:
+    from nav_msgs.srv import GetPlan
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from trajectory_msgs.msg import JointTrajectory
+
+    ns = f'/bench_{robot}'
+    proc = start_node(robot, ns, log_dir)
+    node = bench.node
+    arrivals: list[float] = []
+    points: list[int] = []
+    cond = threading.Condition()
+
+    def on_traj(msg: JointTrajectory) -> None:
+        t = time.perf_counter()
+        with cond:
+            arrivals.append(t)
+            points.append(len(msg.points))
+            cond.notify_all()
+
+    sub = node.create_subscription(JointTrajectory, f'{ns}/geodesic_planner/joint_trajectory',
+                                   on_traj, QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    clients = [node.create_client(GetPlan, f'{ns}/geodesic_planner/plan') for _ in range(4)]
+    try:
+        for c in clients:
+            if not c.wait_for_service(timeout_sec=DEADLINE):
+                raise RuntimeError(f'{robot}: service not up; log:\n{(log_dir / f"{robot}.log").read_text()}')
+        end = time.monotonic() + DEADLINE
+        while sub.get_publisher_count() == 0:
+            if time.monotonic() > end:
+                raise RuntimeError('trajectory publisher never matched')
+            time.sleep(0.01)
+
+        def call(client: Any, req: Any) -> Any:
+            done = threading.Event()
+            fut = client.call_async(req)
+            fut.add_done_callback(lambda _f: done.set())
+            if not done.wait(DEADLINE):
+                raise RuntimeError('no response')
+            return fut.result()
+
+        reqs = requests_for(robot, warmup + n_requests)
+        traj_ms, resp_ms = [], []
+        for i, req in enumerate(reqs):
+            with cond:
+                k = len(arrivals)
+            t0 = time.perf_counter()
+            resp = call(clients[0], req)
+            t_resp = time.perf_counter()
+            if not resp.plan.poses:
+                raise RuntimeError(f'{robot}: request {i} failed (see {log_dir})')
+            with cond:
+                if not cond.wait_for(lambda: len(arrivals) > k, DEADLINE):
+                    raise RuntimeError('trajectory never arrived')
+                t_traj = arrivals[k]
+            if i >= warmup:
+                traj_ms.append((t_traj - t0) * 1e3)
+                resp_ms.append((t_resp - t0) * 1e3)
+
+        # sustained: 4 clients back to back
+        load = requests_for(robot, 4 * per_client, seed=1)
+        failures = [0]
+        lock = threading.Lock()
+
+        def worker(c: int) -> None:
+            for req in load[c::4]:
+                resp = call(clients[c], req)
+                if not resp.plan.poses:
+                    with lock:
+                        failures[0] += 1
+
+        with cond:
+            k0 = len(arrivals)
+        t0 = time.perf_counter()
+        threads = [threading.Thread(target=worker, args=(c,)) for c in range(4)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        expected = len(load) - failures[0]
+        with cond:
+            cond.wait_for(lambda: len(arrivals) >= k0 + expected, DEADLINE)
+            t_end = arrivals[-1] if len(arrivals) > k0 else time.perf_counter()
+        rate = expected / (t_end - t0)
+        return Result(robot, int(np.median(points)), np.array(traj_ms), np.array(resp_ms),
+                      rate, len(load), failures[0])
+    finally:
+        for c in clients:
+            node.destroy_client(c)
+        node.destroy_subscription(sub)
+        rc = stop_node(proc)
+        if rc != 0:
+            print(f'warning: {robot} node exited with {rc}', file=sys.stderr)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--requests', type=int, default=100, help='sequential requests per robot')
+    parser.add_argument('--warmup', type=int, default=5)
+    parser.add_argument('--per-client', type=int, default=25, help='requests per client (4 clients)')
+    parser.add_argument('--robots', nargs='+', default=['planar_3r', 'ur5e'])
+    args = parser.parse_args(argv)
+    problem = netns.isolation_problem()
+    if problem is not None:
+        print(f'ERROR: {problem} (run: bash scripts/netns.sh .venv/bin/python {sys.argv[0]})',
+              file=sys.stderr)
+        return 1
+    bench = Bench()
+    results = []
+    try:
+        with tempfile.TemporaryDirectory(prefix='node_latency_') as tmp:
+            for robot in args.robots:
+                results.append(measure(bench, robot, args.requests, args.warmup, args.per_client,
+                                       Path(tmp)))
+    finally:
+        bench.close()
+    print(f'# planner node latency ({platform.processor() or platform.machine()}, '
+          f'{os.cpu_count()} cores, Python {platform.python_version()}; '
+          f'{args.requests} sequential requests after {args.warmup} warm-up)')
+    print('| robot | points | request->trajectory p50 / p90 / max (ms) | request->response p50 / p90 (ms) '
+          '| 4 clients: plans/s (requests, failures) |')
+    print('|---|---|---|---|---|')
+    for r in results:
+        p = np.percentile(r.traj_ms, [50, 90])
+        q = np.percentile(r.resp_ms, [50, 90])
+        print(f'| {r.robot} | {r.points} | {p[0]:.1f} / {p[1]:.1f} / {r.traj_ms.max():.1f} | '
+              f'{q[0]:.1f} / {q[1]:.1f} | {r.rate:.1f} ({r.rate_requests}, {r.rate_failures}) |')
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
