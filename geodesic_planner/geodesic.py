@@ -239,10 +239,13 @@ def solve_geodesic_bvp(
                         max_nodes=max_nodes, bc_tol=1e-10)
     max_res = float(np.max(sol.rms_residuals)) if sol.rms_residuals is not None and sol.rms_residuals.size else float('nan')
     if sol.status != 0 or not np.all(np.isfinite(sol.y)):
+        cond = np.linalg.cond(equations.metric.tensor(equations.robot, np.stack([q_a, q_b]))).max()
+        hint = f'; the metric is ill-conditioned at the ends (condition number {cond:.2g}): near a singularity' \
+            if cond > 1e6 else ''
         raise BVPError(
             f'geodesic solver did not converge for robot {equations.robot.name!r} '
             f'(solve_bvp status {sol.status}: {sol.message}; max residual {max_res:.3g}, '
-            f'{sol.x.size} nodes, {sol.niter} iterations)', status=int(sol.status), max_residual=max_res)
+            f'{sol.x.size} nodes, {sol.niter} iterations){hint}', status=int(sol.status), max_residual=max_res)
     q = sol.y[:n].T
     bc_res = float(max(np.abs(q[0] - q_a).max(), np.abs(q[-1] - q_b).max()))
     report = SolverReport(int(sol.status), str(sol.message), int(sol.niter), max_res, int(sol.x.size),
