@@ -307,6 +307,12 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
                 'start: "current joint state" requested (empty frame_id, zero quaternion) but no '
                 f'valid /joint_states message with the joints {list(config.joint_names)} '
                 'has been received')
+        outside = [f'{name}={q:.6g} not in [{lo:.6g}, {hi:.6g}]' for name, q, lo, hi in zip(
+            config.joint_names, current_q, config.robot.lower, config.robot.upper)
+            if not (lo - 1e-9 <= q <= hi + 1e-9)]
+        if outside:
+            raise RequestError(f'start: current joint state outside the joint limits: '
+                               f'{", ".join(outside)}')
         start, start_joints = None, current_q
     else:
         start = cv.pose_stamped_to_matrix(request.start, config.frame_id, 'start')

@@ -524,6 +524,23 @@ def test_plan_from_joint_states(planar: PlannerUnderTest, helper: Any, rosout: C
         assert len(resp.plan.poses) > 0
         arr = check_controller_contract(planar.wait_trajectories(n1 + 1)[-1], ROBOT_3R.joint_names)
         assert_allclose(arr.positions[0], q_s, atol=1e-12)       # still the last valid state
+
+        # a well-formed state outside the joint limits is the robot's state: plans from it fail
+        k1, n2 = len(rosout), len(planar.traj)
+        outside = _joint_state(['joint1', 'joint2', 'joint3'], [4.0, 0.1, 0.1])
+
+        def refused() -> bool:
+            pub.publish(outside)
+            return not planar.plan(_from_state_request()).plan.poses
+
+        wait_until(refused, DEADLINE, what='a refused plan from an out-of-limits state',
+                   watch=planar.watch)
+        wait_log(rosout, k1, planar.logger, ERROR, 'joint1=4 not in [-3.14159, 3.14159]')
+        wait_until(attempt, DEADLINE, what='a plan after the state is valid again',
+                   watch=planar.watch)
+        msgs = planar.wait_trajectories(n2 + 1)
+        assert len(msgs) == n2 + 1
+        assert_allclose(cv.joint_trajectory_to_arrays(msgs[-1]).positions[0], q_s, atol=1e-12)
     finally:
         helper.destroy_publisher(pub)
 
