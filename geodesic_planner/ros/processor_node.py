@@ -3,8 +3,13 @@
 Interface (``~`` = ``/trajectory_processor`` by default):
 
 * subscription ``input_topic`` (trajectory_msgs/JointTrajectory, default
-  ``/geodesic_planner/joint_trajectory``), reliable, volatile, depth 10, ``raw=True``: the exact
-  CDR bytes are recorded first, then decoded with ``rclpy.serialization.deserialize_message``.
+  ``/geodesic_planner/joint_trajectory``), reliable, volatile, **keep_all**, ``raw=True``: the
+  exact CDR bytes are recorded first, then decoded with
+  ``rclpy.serialization.deserialize_message``. keep_all rather than keep_last 10: with a depth of
+  10, a burst of 30 trajectories lost 19 in the reader queue before the node saw them; with
+  keep_all a reliable publisher is flow-controlled instead (nothing dropped). Other recorded
+  topics are subscribed the same way, with "best available" reliability (reliable when every
+  publisher is).
 * publisher ``output_topic`` (default ``~/joint_trajectory``, remap it to a controller),
   reliable, volatile, depth 10: the input resampled every ``sample_period`` s and slowed down by
   ``velocity_scaling`` f (times / f, velocities * f, accelerations * f**2, same path), positions,
@@ -86,8 +91,10 @@ PARAMETERS: dict[str, tuple[Any, str, bool, str]] = {
 }
 
 
-def _qos(reliability: ReliabilityPolicy = ReliabilityPolicy.RELIABLE) -> QoSProfile:
-    return QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=reliability,
+def _qos(reliability: ReliabilityPolicy = ReliabilityPolicy.RELIABLE, *, keep_all: bool = False) -> QoSProfile:
+    """Volatile QoS, depth 10; ``keep_all`` for subscriptions whose every message must be recorded."""
+    history = HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST
+    return QoSProfile(depth=10, history=history, reliability=reliability,
                       durability=DurabilityPolicy.VOLATILE)
 
 
@@ -145,7 +152,8 @@ class TrajectoryProcessorNode(Node):
 
         try:
             self.input_sub = self.create_subscription(
-                JointTrajectory, self.get_parameter('input_topic').value, self._on_input, _qos(), raw=True)
+                JointTrajectory, self.get_parameter('input_topic').value, self._on_input, _qos(keep_all=True),
+                raw=True)
             self.output_pub = self.create_publisher(
                 JointTrajectory, self.get_parameter('output_topic').value, _qos())
         except (ValueError, TypeError, NameValidationException) as err:
@@ -229,8 +237,8 @@ class TrajectoryProcessorNode(Node):
             raise RequestError(msg) from err
         # Best available: reliable with reliable publishers, best effort otherwise.
         self._extra_subs[topic] = self.create_subscription(
-            cls, topic, lambda raw, t=topic: self._record(t, raw), _qos(ReliabilityPolicy.BEST_AVAILABLE),
-            raw=True)
+            cls, topic, lambda raw, t=topic: self._record(t, raw),
+            _qos(ReliabilityPolicy.BEST_AVAILABLE, keep_all=True), raw=True)
 
     def _discover_types(self) -> None:
         types = dict(self.get_topic_names_and_types())

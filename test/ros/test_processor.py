@@ -1,0 +1,356 @@
+"""The trajectory processor node as a user runs it: console script, real DDS, real bags.
+
+Oracles: the input is a minimum-jerk quintic q(t) = q0 + (q1 - q0) b(t / T), which quintic
+Hermite interpolation reproduces exactly, so the output must be q(f t), f q'(f t), f**2 q''(f t)
+at t = k * sample_period; bags are read back with rosbags and compared decoded (never bytes).
+No fixed sleeps: every wait has an event and a deadline.
+"""
+from __future__ import annotations
+
+import re
+import signal
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+pytest.importorskip('rclpy')
+
+from numpy.testing import assert_allclose, assert_array_equal  # noqa: E402
+from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
+from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
+from rosbags.highlevel import AnyReader  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory  # noqa: E402
+
+from geodesic_planner.bag import JOINT_TRAJECTORY, bag_info, read_trajectories, to_cdr  # noqa: E402
+from geodesic_planner.ros import conversions as cv  # noqa: E402
+
+from .launch import Collector, call_service, wait_for_service, wait_for_subscribers, wait_until  # noqa: E402
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
+
+DEADLINE = 60.0
+INPUT = '/geodesic_planner/joint_trajectory'
+OUTPUT = '/trajectory_processor/joint_trajectory'
+NAMES = ['joint1', 'joint2', 'joint3']
+FIXTURE_BAG = Path(__file__).resolve().parents[2] / 'msg_examples' / 'bags' / 'paper_3r_scaling_0.5'
+QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                 durability=DurabilityPolicy.VOLATILE)
+
+
+# =========================================================================== oracle
+def min_jerk(t: np.ndarray, T: float, q0: np.ndarray, q1: np.ndarray) -> tuple[np.ndarray, ...]:
+    """q0 + (q1 - q0) (10 s^3 - 15 s^4 + 6 s^5), s = t / T, and its first two derivatives."""
+    s = (np.asarray(t, dtype=float) / T)[:, None]
+    b = 10 * s**3 - 15 * s**4 + 6 * s**5
+    db = (30 * s**2 - 60 * s**3 + 30 * s**4) / T
+    ddb = (60 * s - 180 * s**2 + 120 * s**3) / T**2
+    d = (np.asarray(q1) - np.asarray(q0))[None, :]
+    return np.asarray(q0)[None, :] + d * b, d * db, d * ddb
+
+
+T_END = 2.0
+KNOTS = np.array([0.0, 0.3, 0.7, 1.2, 1.6, 2.0])
+Q0, Q1 = np.array([0.2, -0.5, 1.0]), np.array([1.0, 0.4, -0.3])
+
+
+def known_trajectory(q0: np.ndarray = Q0, q1: np.ndarray = Q1) -> JointTrajectory:
+    q, dq, ddq = min_jerk(KNOTS, T_END, q0, q1)
+    return cv.arrays_to_joint_trajectory(NAMES, KNOTS, q, dq, ddq)
+
+
+def check_output(msg: JointTrajectory, f: float, dt: float, q0: np.ndarray = Q0, q1: np.ndarray = Q1) -> cv.TrajectoryArrays:
+    """Points every dt (ns-exact), lasting T / f, on q(f t) with scaled derivatives, at rest at the end."""
+    assert cv.validate_joint_trajectory(msg) == []
+    assert list(msg.joint_names) == NAMES
+    ns = np.array([p.time_from_start.sec * 10**9 + p.time_from_start.nanosec for p in msg.points])
+    end_ns = round(T_END / f * 1e9)
+    dt_ns = round(dt * 1e9)
+    n_expected = int(np.ceil(end_ns / dt_ns - 1e-6)) + 1
+    assert len(ns) == n_expected
+    assert_array_equal(ns[:-1], np.arange(len(ns) - 1) * dt_ns)
+    assert ns[-1] == end_ns
+    arr = cv.joint_trajectory_to_arrays(msg)
+    q, dq, ddq = min_jerk(f * arr.t, T_END, q0, q1)
+    assert_allclose(arr.positions, q, atol=1e-9)
+    assert_allclose(arr.velocities, f * dq, atol=1e-8)
+    assert_allclose(arr.accelerations, f * f * ddq, atol=1e-7)
+    assert_array_equal(arr.velocities[[0, -1]], 0.0)
+    assert_array_equal(arr.accelerations[[0, -1]], 0.0)
+    assert_array_equal(arr.positions[-1], min_jerk(np.array([T_END]), T_END, q0, q1)[0][0])  # the last knot
+    return arr
+
+
+# =========================================================================== harness
+class Processor:
+    """A running trajectory_processor_node and the helper-side entities talking to it."""
+
+    def __init__(self, start_node: Any, node: Any, params: dict[str, Any], name: str = 'processor') -> None:
+        self.process = start_node('trajectory_processor_node', params=params, name=name)
+        self.watch = [self.process]
+        self.pub = node.create_publisher(JointTrajectory, INPUT, QOS)
+        self.out = Collector(node, JointTrajectory, OUTPUT, QOS)
+        self.set_client = node.create_client(SetParameters, '/trajectory_processor/set_parameters')
+        self.get_client = node.create_client(GetParameters, '/trajectory_processor/get_parameters')
+        wait_for_subscribers(self.pub, 1, DEADLINE, watch=self.watch)
+        wait_until(lambda: self.out.subscription.get_publisher_count() > 0, DEADLINE,
+                   what='processor output publisher matched', watch=self.watch)
+
+    def wait_outputs(self, n: int) -> list[JointTrajectory]:
+        return self.out.wait_for(n, DEADLINE, watch=self.watch)
+
+    def wait_log(self, text: str) -> str:
+        return wait_until(lambda: text in self.process.log_text() and self.process.log_text(), DEADLINE,
+                          what=f'log line containing {text!r}', watch=self.watch)
+
+    def set_parameters(self, **values: Any) -> list[Any]:
+        wait_for_service(self.set_client, DEADLINE, watch=self.watch)
+        req = SetParameters.Request()
+        req.parameters = [Parameter(k, value=v).to_parameter_msg() for k, v in values.items()]
+        return list(call_service(self.set_client, req, DEADLINE, watch=self.watch).results)
+
+    def get_parameter(self, name: str) -> Any:
+        wait_for_service(self.get_client, DEADLINE, watch=self.watch)
+        value = call_service(self.get_client, GetParameters.Request(names=[name]), DEADLINE,
+                             watch=self.watch).values[0]
+        return Parameter.from_parameter_msg(ParameterMsg(name=name, value=value)).value
+
+    def stop(self, sig: signal.Signals = signal.SIGINT) -> str:
+        rc = self.process.stop(sig)
+        log = self.process.log_text()
+        assert rc == 0, log
+        assert 'bag closed' in log or 'bag_path' not in ' '.join(self.process.argv), log
+        return log
+
+
+def decoded(path: Path, topic: str) -> list[Any]:
+    with AnyReader([path]) as reader:
+        conns = [c for c in reader.connections if c.topic == topic]
+        return [reader.deserialize(d, c.msgtype) for c, _, d in reader.messages(connections=conns)] if conns else []
+
+
+def bag_dir(log: str) -> Path:
+    match = re.search(r'bag closed: (\S+) \(', log)
+    assert match, log
+    return Path(match.group(1))
+
+
+# =========================================================================== tests
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_known_trajectory_resampled_scaled_and_recorded(start_node: Any, ros_node: Any, tmp_path: Path,
+                                                        storage: str) -> None:
+    bag = tmp_path / 'bag'
+    p = Processor(start_node, ros_node, {'velocity_scaling': 0.5, 'sample_period': 0.01,
+                                         'bag_path': str(bag), 'storage': storage})
+    sent = known_trajectory()
+    p.pub.publish(sent)
+    (out,) = p.wait_outputs(1)
+    arr = check_output(out, 0.5, 0.01)
+    assert len(arr.t) == 401
+    log = p.stop(signal.SIGINT)
+    assert 'received trajectory: 6 points, 2 s -> published 401 points, 4 s' in log
+    assert bag_dir(log) == bag
+
+    info = bag_info(bag)
+    assert info.storage == storage
+    counts = {t.name: t.count for t in info.topics}
+    assert counts == {INPUT: 1, OUTPUT: 1, '/joint_states': 0}
+    (rin,) = read_trajectories(bag, INPUT)
+    (rout,) = read_trajectories(bag, OUTPUT)
+    sent_arr = cv.joint_trajectory_to_arrays(sent)
+    assert_array_equal(rin.positions, sent_arr.positions)
+    assert_array_equal(rin.velocities, sent_arr.velocities)
+    assert_array_equal(rout.t, arr.t)
+    assert_array_equal(rout.positions, arr.positions)
+    assert_array_equal(rout.velocities, arr.velocities)
+    assert_array_equal(rout.accelerations, arr.accelerations)
+    assert rout.stamp_ns >= rin.stamp_ns
+
+
+def test_invalid_trajectories_rejected_recorded_and_node_keeps_going(start_node: Any, ros_node: Any,
+                                                                    tmp_path: Path) -> None:
+    p = Processor(start_node, ros_node, {'bag_path': str(tmp_path / 'bag')})
+    good = known_trajectory()
+
+    def mutated(fn: Any) -> JointTrajectory:
+        msg = known_trajectory()
+        fn(msg)
+        return msg
+
+    cases = [
+        ('point 2: 2 positions for 3 joints', lambda m: setattr(m.points[2], 'positions', [0.0, 1.0])),
+        ('point 1: non-finite velocities', lambda m: m.points[1].velocities.__setitem__(0, float('nan'))),
+        ('point 3: non-finite positions', lambda m: m.points[3].positions.__setitem__(2, float('inf'))),
+        ('not after', lambda m: setattr(m.points[4], 'time_from_start', m.points[3].time_from_start)),
+        ('no points', lambda m: setattr(m, 'points', [])),
+        ('duplicate joint names', lambda m: setattr(m, 'joint_names', ['a', 'a', 'b'])),
+    ]
+    for _, fn in cases:
+        p.pub.publish(mutated(fn))
+    p.pub.publish(good)
+    outs = p.wait_outputs(1)  # processed in order: when the good one is out, the bad ones were handled
+    for cause, _ in cases:
+        p.wait_log(cause)
+    assert len(p.out) == 1
+    check_output(outs[0], 1.0, 0.01)
+    assert p.process.alive()
+    log = p.stop()
+    assert log.count('rejected trajectory') == len(cases)
+    assert 'received 7, published 1, rejected 6' in log
+    recs = read_trajectories(bag_dir(log), INPUT)
+    assert len(recs) == 7
+    for (cause, _), rec in zip(cases, recs):
+        assert any(cause in x for x in rec.problems), (cause, rec.problems)
+    assert recs[-1].problems == ()
+    assert len(read_trajectories(bag_dir(log), OUTPUT)) == 1
+
+
+def test_burst_then_sigint_every_received_message_recorded(start_node: Any, ros_node: Any, tmp_path: Path) -> None:
+    """Count published == count recorded; joint states recorded raw; SIGINT closes the bag."""
+    p = Processor(start_node, ros_node, {'bag_path': str(tmp_path / 'bag'), 'sample_period': 0.05})
+    js_pub = ros_node.create_publisher(JointState, '/joint_states', QOS)
+    wait_for_subscribers(js_pub, 1, DEADLINE, watch=p.watch)
+    n = 30
+    goals = [Q1 + 0.01 * k for k in range(n)]
+    for k in range(n):
+        p.pub.publish(known_trajectory(Q0, goals[k]))
+        js = JointState(name=NAMES, position=[0.01 * k, 0.0, 0.0])  # velocity/effort empty
+        js_pub.publish(js)
+    outs = p.wait_outputs(n)
+    for k, out in enumerate(outs):
+        check_output(out, 1.0, 0.05, Q0, goals[k])
+    log = p.stop(signal.SIGINT)
+    path = bag_dir(log)
+    counts = {t.name: t.count for t in bag_info(path).topics}
+    assert counts[INPUT] == n
+    assert counts[OUTPUT] == n
+    m = re.search(r'/joint_states: (\d+)\)', log)
+    assert m and counts['/joint_states'] == int(m.group(1))
+    rec_out = read_trajectories(path, OUTPUT)
+    for out, rec in zip(outs, rec_out):
+        arr = cv.joint_trajectory_to_arrays(out)
+        assert_array_equal(rec.t, arr.t)
+        assert_array_equal(rec.positions, arr.positions)
+    states = decoded(path, '/joint_states')
+    assert [s.position[0] for s in states] == pytest.approx([0.01 * k for k in range(len(states))])
+    assert all(s.velocity.size == 0 for s in states)
+
+
+def test_sigterm_right_after_publishing_leaves_consistent_bag(start_node: Any, ros_node: Any,
+                                                              tmp_path: Path) -> None:
+    """No wait for outputs: whatever the node received is processed and recorded before exit."""
+    p = Processor(start_node, ros_node, {'bag_path': str(tmp_path / 'bag'), 'storage': 'sqlite3'})
+    for k in range(10):
+        p.pub.publish(known_trajectory(Q0, Q1 + 0.1 * k))
+    p.wait_log('received trajectory')  # at least one arrived before the signal
+    log = p.stop(signal.SIGTERM)
+    m = re.search(r'received (\d+), published (\d+), rejected (\d+)', log)
+    assert m, log
+    received, published = int(m.group(1)), int(m.group(2))
+    assert received == published >= 1
+    path = bag_dir(log)
+    counts = {t.name: t.count for t in bag_info(path).topics}
+    assert counts[INPUT] == received
+    assert counts[OUTPUT] == published
+    assert len(p.out) <= published
+
+
+def test_parameters_validated_via_service(start_node: Any, ros_node: Any) -> None:
+    p = Processor(start_node, ros_node, {})
+    for value in (0.0, 1.5, -0.5, float('nan')):
+        (res,) = p.set_parameters(velocity_scaling=value)
+        assert not res.successful
+        assert 'velocity_scaling must be in (0, 1]' in res.reason
+    (res,) = p.set_parameters(velocity_scaling='fast')
+    assert not res.successful and 'must be a number' in res.reason
+    (res,) = p.set_parameters(sample_period=0.0)
+    assert not res.successful and 'sample_period must be finite and > 0' in res.reason
+    (res,) = p.set_parameters(bag_path='/tmp/elsewhere')
+    assert not res.successful and 'read-only' in res.reason
+    assert p.get_parameter('velocity_scaling') == 1.0
+    results = p.set_parameters(velocity_scaling=0.25, sample_period=0.02)
+    assert [r.successful for r in results] == [True, True], [r.reason for r in results]
+    (res,) = p.set_parameters(velocity_scaling=1)  # an integer is a valid factor
+    assert res.successful, res.reason
+    (res,) = p.set_parameters(velocity_scaling=0.25)
+    assert res.successful
+    p.pub.publish(known_trajectory())
+    (out,) = p.wait_outputs(1)
+    check_output(out, 0.25, 0.02)
+    p.stop()
+
+
+@pytest.mark.parametrize('params, reason', [
+    ({'velocity_scaling': 1.5}, 'velocity_scaling must be in (0, 1]'),
+    ({'sample_period': -0.01}, 'sample_period must be finite and > 0'),
+    ({'storage': 'rosbag1'}, 'storage must be one of mcap, sqlite3'),
+    ({'input_topic': 'bad topic!'}, 'invalid topic name'),
+])
+def test_bad_start_parameters_exit_nonzero(start_node: Any, params: dict[str, Any], reason: str) -> None:
+    proc = start_node('trajectory_processor_node', params=params, name='bad_start')
+    rc = proc.wait(DEADLINE)
+    log = proc.log_text()
+    assert rc == 1, log
+    assert 'cannot start' in log and reason in log, log
+    assert 'Traceback' not in log
+
+
+def test_existing_bag_path_never_overwritten(start_node: Any, ros_node: Any, tmp_path: Path) -> None:
+    base = tmp_path / 'runs'
+    base.mkdir()
+    (base / 'keep.txt').write_text('precious')
+    p = Processor(start_node, ros_node, {'bag_path': str(base)})
+    p.pub.publish(known_trajectory())
+    p.wait_outputs(1)
+    log = p.stop()
+    assert f'{base} exists, not overwritten' in log
+    path = bag_dir(log)
+    assert path.parent == base and path.name.startswith('trajectory_processor_')
+    assert (base / 'keep.txt').read_text() == 'precious'
+    assert len(read_trajectories(path, OUTPUT)) == 1
+
+
+def test_to_cdr_exact_for_rclpy_messages() -> None:
+    """serialize_message pads empty float64[]; to_cdr gives bytes rclpy and rosbags both accept."""
+    msg = known_trajectory()
+    msg.points[0].accelerations = []
+    data = to_cdr(msg, JOINT_TRAJECTORY)
+    assert deserialize_message(data, JointTrajectory) == msg
+    assert len(serialize_message(msg)) >= len(data)
+
+
+@pytest.mark.skipif(not FIXTURE_BAG.exists(), reason=f'fixture bag {FIXTURE_BAG} not recorded yet')
+def test_replay_fixture_bag_reproduces_recorded_output(start_node: Any, ros_node: Any) -> None:
+    meta = yaml.safe_load((FIXTURE_BAG / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    custom = meta.get('custom_data') or {}
+    f = float(custom.get('velocity_scaling', 0.5))
+    dt = float(custom.get('sample_period', 0.01))
+    recorded_in = read_trajectories(FIXTURE_BAG, INPUT)
+    recorded_out = read_trajectories(FIXTURE_BAG, OUTPUT)
+    assert recorded_out, 'fixture bag has no processed output'
+    with AnyReader([FIXTURE_BAG]) as reader:
+        conns = [c for c in reader.connections if c.topic == INPUT]
+        raw_inputs = [bytes(d) for _, _, d in reader.messages(connections=conns)]
+    assert len(raw_inputs) == len(recorded_in)
+    p = Processor(start_node, ros_node, {'velocity_scaling': f, 'sample_period': dt})
+    for data in raw_inputs:
+        p.pub.publish(data)  # the recorded bytes, as the planner sent them
+    outs = p.wait_outputs(len(recorded_out))
+    valid_inputs = [r for r in recorded_in if not r.problems]
+    assert len(valid_inputs) == len(recorded_out)
+    for out, rec, rin in zip(outs, recorded_out, valid_inputs):
+        arr = cv.joint_trajectory_to_arrays(out)
+        assert list(out.joint_names) == rec.joint_names
+        assert_allclose(arr.t, rec.t, atol=1e-9)
+        assert_allclose(arr.positions, rec.positions, atol=1e-12)
+        assert_allclose(arr.velocities, rec.velocities, atol=1e-12)
+        assert_allclose(arr.accelerations, rec.accelerations, atol=1e-12)
+        assert rec.duration == pytest.approx(rin.duration / f, abs=1e-9)
+    p.stop()
