@@ -287,3 +287,97 @@ if __name__ == '__main__':  # regenerate geodesic_planner/data/*.urdf
     for key, spec in EXAMPLE_ARMS.items():
         with open(os.path.join(out, f'{key}.urdf'), 'w', encoding='utf-8') as fh:
             fh.write(arm_urdf(spec))
+
+
+def dh_fk_batched(rows: Sequence[Sequence[float]], kinds: Sequence[str], qs: np.ndarray, *,
+                  modified: bool = False, base: np.ndarray | None = None,
+                  tool: np.ndarray | None = None) -> np.ndarray:
+    """Vectorised dh_product: qs (N, dof) -> (N, 4, 4) (same formulas, batched elementary matrices)."""
+    qs = np.atleast_2d(np.asarray(qs, dtype=float))
+    N = qs.shape[0]
+
+    def brz(t):
+        M = np.zeros((N, 4, 4))
+        c, s = np.cos(t), np.sin(t)
+        M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1] = c, -s, s, c
+        M[:, 2, 2] = M[:, 3, 3] = 1.0
+        return M
+
+    def btz(d):
+        M = np.broadcast_to(np.eye(4), (N, 4, 4)).copy()
+        M[:, 2, 3] = d
+        return M
+
+    T = np.broadcast_to(np.eye(4) if base is None else base, (N, 4, 4)).copy()
+    for i, (row, kind) in enumerate(zip(rows, kinds)):
+        if modified:
+            alpha, a, d, theta = row
+        else:
+            theta, d, a, alpha = row
+        th = theta + (qs[:, i] if kind == 'revolute' else 0.0)
+        dd = d + (qs[:, i] if kind == 'prismatic' else 0.0)
+        if modified:
+            T = T @ (rx(alpha) @ tr(x=a)) @ brz(np.broadcast_to(th, (N,))) @ btz(np.broadcast_to(dd, (N,)))
+        else:
+            T = T @ brz(np.broadcast_to(th, (N,))) @ btz(np.broadcast_to(dd, (N,))) @ (tr(x=a) @ rx(alpha))
+    if tool is not None:
+        T = T @ tool
+    return T
+
+
+# ---------------------------------------------------------------------- IK oracle (Newton, FD Jacobian)
+def pose_residual(T: np.ndarray, T_star: np.ndarray) -> np.ndarray:
+    """6-vector (p − p*, vee of the skew part of R R*ᵀ) for (..., 4, 4) -> (..., 6); zero iff equal
+    (for rotation errors below π/2)."""
+    E = T[..., :3, :3] @ np.swapaxes(T_star[..., :3, :3], -1, -2)
+    w = 0.5 * np.stack([E[..., 2, 1] - E[..., 1, 2], E[..., 0, 2] - E[..., 2, 0],
+                        E[..., 1, 0] - E[..., 0, 1]], axis=-1)
+    return np.concatenate([T[..., :3, 3] - T_star[..., :3, 3], w], axis=-1)
+
+
+def newton_ik(fk_batch, T_star: np.ndarray, seed: np.ndarray, *, tol: float = 1e-13,
+              max_iter: int = 30, h: float = 1e-7, damping: float = 0.0) -> np.ndarray:
+    """Local IK by Newton's method (least squares for dof != 6) with a finite-difference Jacobian
+    of an independent FK ``fk_batch(qs (N, dof)) -> (N, 4, 4)``. Converges to the solution nearest
+    the seed's basin; raises AssertionError if it does not converge."""
+    q = np.array(seed, dtype=float)
+    n = q.size
+    for _ in range(max_iter):
+        Q = np.concatenate([q[None], q + h * np.eye(n), q - h * np.eye(n)])
+        T = fk_batch(Q)
+        e = pose_residual(T[0], T_star)
+        if np.abs(e).max() < tol:
+            return q
+        J = ((pose_residual(T[1:n + 1], T_star) - pose_residual(T[n + 1:], T_star)) / (2 * h)).T
+        if damping:
+            dq = -np.linalg.solve(J.T @ J + damping * np.eye(n), J.T @ e)
+        else:
+            dq = -np.linalg.lstsq(J, e, rcond=None)[0]
+        q = q + dq
+    e = pose_residual(fk_batch(q[None])[0], T_star)
+    assert np.abs(e).max() < 1e3 * tol, f'oracle IK did not converge: residual {np.abs(e).max():.3g}'
+    return q
+
+
+def continuation_ik(fk_batch, targets: np.ndarray, q0: np.ndarray, **kw) -> np.ndarray:
+    """IK along a sequence of poses (N, 4, 4), each solve seeded with the previous solution."""
+    out = [newton_ik(fk_batch, targets[0], q0, **kw)]
+    for T in targets[1:]:
+        out.append(newton_ik(fk_batch, T, out[-1], **kw))
+    return np.array(out)
+
+
+def line_slerp_oracle(T_a: np.ndarray, T_b: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Straight line + constant-rate rotation (body-frame axis-angle), written independently."""
+    Rrel = T_a[:3, :3].T @ T_b[:3, :3]
+    ang = float(np.arccos(np.clip((np.trace(Rrel) - 1) / 2, -1, 1)))
+    axis = np.array([Rrel[2, 1] - Rrel[1, 2], Rrel[0, 2] - Rrel[2, 0], Rrel[1, 0] - Rrel[0, 1]])
+    axis = axis / np.linalg.norm(axis) if ang > 1e-12 else np.array([0.0, 0.0, 1.0])
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    out = np.zeros((len(s), 4, 4))
+    for k, sk in enumerate(s):
+        R = np.eye(3) + np.sin(sk * ang) * K + (1 - np.cos(sk * ang)) * K @ K
+        out[k, :3, :3] = T_a[:3, :3] @ R
+        out[k, :3, 3] = (1 - sk) * T_a[:3, 3] + sk * T_b[:3, 3]
+        out[k, 3, 3] = 1.0
+    return out
