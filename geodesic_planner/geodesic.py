@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import threading
+import time
 import warnings
 from dataclasses import dataclass
 
@@ -191,6 +192,7 @@ def solve_geodesic_bvp(
     *,
     tol: float = 1e-8,
     max_nodes: int = 2000,
+    time_limit: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, SolverReport]:
     """Solve the geodesic two-point BVP q(0) = q_a, q(1) = q_b with scipy's solve_bvp.
 
@@ -199,6 +201,8 @@ def solve_geodesic_bvp(
         s_nodes: initial mesh (m,) from 0 to 1.
         q_guess, v_guess: initial guess of q and q' at the nodes, (m, dof).
         tol: solve_bvp's relative collocation tolerance.
+        max_nodes: mesh size limit.
+        time_limit: wall-clock budget in s (None: unbounded); checked at every evaluation.
     Returns:
         (s, q, q', q'', report) at the solution's mesh (q'' = the equations' value at the nodes).
     Raises:
@@ -207,12 +211,19 @@ def solve_geodesic_bvp(
     """
     n = equations.robot.dof
     eye = np.eye(n)
+    deadline = None if time_limit is None else time.perf_counter() + time_limit
+
+    def check_time() -> None:
+        if deadline is not None and time.perf_counter() > deadline:
+            raise _TimeLimit
 
     def fun(_s: np.ndarray, y: np.ndarray) -> np.ndarray:
+        check_time()
         a = equations.acceleration(y[:n].T, y[n:].T)
         return np.vstack([y[n:], a.T])
 
     def fun_jac(_s: np.ndarray, y: np.ndarray) -> np.ndarray:
+        check_time()
         _, da_dq, da_dv = equations.evaluate(y[:n].T, y[n:].T)
         m = y.shape[1]
         df = np.zeros((2 * n, 2 * n, m))
@@ -233,10 +244,17 @@ def solve_geodesic_bvp(
         return dbc_a, dbc_b
 
     y0 = np.vstack([q_guess.T, v_guess.T])
-    with warnings.catch_warnings():
-        warnings.simplefilter('ignore')
-        sol = solve_bvp(fun, bc, s_nodes, y0, fun_jac=fun_jac, bc_jac=bc_jac, tol=tol,
-                        max_nodes=max_nodes, bc_tol=1e-10)
+    try:
+        with warnings.catch_warnings(), np.errstate(all='ignore'):
+            warnings.simplefilter('ignore')
+            sol = solve_bvp(fun, bc, s_nodes, y0, fun_jac=fun_jac, bc_jac=bc_jac, tol=tol,
+                            max_nodes=max_nodes, bc_tol=1e-10)
+    except _TimeLimit:
+        raise BVPError(f'geodesic solver exceeded its time limit of {time_limit:g} s for robot '
+                       f'{equations.robot.name!r}', status=-2) from None
+    except (ValueError, np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError) as err:
+        raise BVPError(f'geodesic solver failed for robot {equations.robot.name!r}: {err}',
+                       status=-1) from err
     max_res = float(np.max(sol.rms_residuals)) if sol.rms_residuals is not None and sol.rms_residuals.size else float('nan')
     if sol.status != 0 or not np.all(np.isfinite(sol.y)):
         cond = np.linalg.cond(equations.metric.tensor(equations.robot, np.stack([q_a, q_b]))).max()
@@ -251,6 +269,10 @@ def solve_geodesic_bvp(
     report = SolverReport(int(sol.status), str(sol.message), int(sol.niter), max_res, int(sol.x.size),
                           bc_residual=bc_res)
     return sol.x, q, sol.y[n:].T, sol.yp[n:].T, report
+
+
+class _TimeLimit(Exception):
+    """Internal: the solver's wall-clock budget ran out."""
 
 
 class GeodesicPath(JointPath):

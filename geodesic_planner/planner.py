@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import RequestError
+from .errors import LimitError, RequestError
 from .geodesic import (GeodesicEquations, GeodesicPath, SolverReport, collocation_rms, refine_mesh,
                        solve_geodesic_bvp)
 from .ik import IKSolution, check_transform, dls_batch, solve_ik
@@ -29,6 +29,10 @@ if TYPE_CHECKING:
 #: Default collocation tolerance (solve_bvp's relative residual). On the paper's 3R example and
 #: on ur5e moves it gives tool paths within 1e-8 m of the exact geodesic (benchmarks/run.py).
 DEFAULT_TOL = 1e-5
+#: Joint positions may exceed their limits by this much (round-off), rad or m.
+LIMIT_SLACK = 1e-9
+#: Default wall-clock budget of one geodesic solve, s.
+DEFAULT_TIME_LIMIT = 10.0
 #: Default number of initial mesh nodes.
 DEFAULT_NODES = 11
 #: Task-space IK residual below which the line + slerp guess counts as exactly reachable.
@@ -50,6 +54,8 @@ class GeodesicPlanner:
         tol: collocation tolerance (relative residual).
         max_nodes: mesh size limit (bounds solve time).
         ik_tolerance: allowed distance between a requested pose and the nearest reachable one.
+        time_limit: wall-clock budget of one geodesic solve, s (None: unbounded).
+        check_limits: reject boundary joints and solved paths outside the position limits.
 
     Raises:
         RequestError: unknown metric or invalid weights.
@@ -58,7 +64,8 @@ class GeodesicPlanner:
     def __init__(self, robot: Chain, metric: str = 'paper', *, position_weight: float = 1.0,
                  orientation_weight: float = 1.0, epsilon: float | None = None,
                  nodes: int = DEFAULT_NODES, tol: float = DEFAULT_TOL, max_nodes: int = 2000,
-                 ik_tolerance: float | None = None) -> None:
+                 ik_tolerance: float | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
+                 check_limits: bool = True) -> None:
         if epsilon is None:
             epsilon = DEFAULT_REDUNDANT_EPSILON if robot.dof > 6 else 0.0
         self.robot = robot
@@ -70,6 +77,10 @@ class GeodesicPlanner:
         self.tol = float(tol)
         self.max_nodes = int(max_nodes)
         self.ik_tolerance = ik_tolerance
+        if time_limit is not None and not time_limit > 0:
+            raise RequestError(f'time_limit must be > 0 s or None, got {time_limit}')
+        self.time_limit = time_limit
+        self.check_limits = check_limits
 
     # ------------------------------------------------------------------ ends
     def _ik(self, T: np.ndarray, seed: np.ndarray | None, tolerance: float | None) -> IKSolution:
@@ -164,16 +175,39 @@ class GeodesicPlanner:
         """Geodesic between two joint configurations."""
         return self.plan(None, None, start_joints=q_a, goal_joints=q_b)
 
+    def _check_limits(self, q: np.ndarray, what: str) -> None:
+        """Raise LimitError if joint positions q (dof,) lie outside the robot's limits."""
+        r = self.robot
+        bad = np.nonzero((q < r.lower - LIMIT_SLACK) | (q > r.upper + LIMIT_SLACK))[0]
+        if bad.size:
+            i = int(bad[0])
+            raise LimitError(f'{what}: joint {r.joint_names[i]!r} = {q[i]:.6g} is outside its limits '
+                             f'[{r.lower[i]:.6g}, {r.upper[i]:.6g}]')
+
+    def _check_path_limits(self, s: np.ndarray, q: np.ndarray) -> None:
+        r = self.robot
+        out = (q < r.lower - LIMIT_SLACK) | (q > r.upper + LIMIT_SLACK)
+        if np.any(out):
+            k, i = (int(x) for x in np.argwhere(out)[0])
+            raise LimitError(f'the geodesic leaves the joint limits: joint {r.joint_names[i]!r} reaches '
+                             f'{q[k, i]:.6g} at s = {s[k]:.3f} (limits [{r.lower[i]:.6g}, {r.upper[i]:.6g}])')
+
     def _solve(self, q_a: np.ndarray, q_b: np.ndarray, ik_a: IKSolution | None,
                ik_b: IKSolution | None, t0: float) -> GeodesicPath:
+        if self.check_limits:
+            self._check_limits(q_a, 'start joints')
+            self._check_limits(q_b, 'goal joints')
         self.metric.check_regular(self.robot, q_a, 'the start')
         self.metric.check_regular(self.robot, q_b, 'the goal')
         s = np.linspace(0.0, 1.0, self.nodes)
         q_g, v_g, exact = self.initial_guess(q_a, q_b, s)
         if exact:
             s, q_g, v_g = self._presize_mesh(q_a, q_b, s, q_g, v_g)
-        s_sol, q_sol, v_sol, a_sol, rep = solve_geodesic_bvp(self.equations, q_a, q_b, s, q_g, v_g,
-                                                      tol=self.tol, max_nodes=self.max_nodes)
+        s_sol, q_sol, v_sol, a_sol, rep = solve_geodesic_bvp(
+            self.equations, q_a, q_b, s, q_g, v_g, tol=self.tol, max_nodes=self.max_nodes,
+            time_limit=self.time_limit)
+        if self.check_limits:
+            self._check_path_limits(s_sol, q_sol)
         rep = SolverReport(rep.status, rep.message, rep.iterations, rep.max_residual, rep.mesh_size,
                            (time.perf_counter() - t0) * 1e3, rep.bc_residual)
         return GeodesicPath(self.equations, s_sol, q_sol, v_sol, rep, ik_a, ik_b, a_sol)
