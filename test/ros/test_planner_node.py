@@ -25,16 +25,18 @@ from nav_msgs.srv import GetPlan  # noqa: E402
 from numpy.testing import assert_allclose  # noqa: E402
 from rcl_interfaces.msg import Log  # noqa: E402
 from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
-from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
+from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 
+import geodesic_planner  # noqa: E402
 from geodesic_planner import load_robot  # noqa: E402
 from geodesic_planner.ros import conversions as cv  # noqa: E402
 from geodesic_planner.transforms import make_transform, so3_exp, so3_log  # noqa: E402
+from geodesic_planner.urdf import chain_from_urdf  # noqa: E402
 
 from .launch import (Collector, RclpyRuntime, call_service, popen_node, wait_for_service,  # noqa: E402
                      wait_for_subscribers, wait_until)
@@ -547,30 +549,107 @@ def test_plan_from_joint_states(planar: PlannerUnderTest, helper: Any, rosout: C
 
 # --------------------------------------------------------------------------- 6-joint arm
 
-def test_ur5e_line_and_rotation(ur5e: PlannerUnderTest) -> None:
-    robot = load_robot('ur5e')
-    q0 = np.array([0.3, -1.2, 1.4, -1.7, -1.5, 0.2])
+def line_slerp_request(robot: Any, q0: np.ndarray, frame: str = '') -> tuple[GetPlan.Request, np.ndarray, np.ndarray]:
+    """Start at fk(q0); goal 0.18 m away along a line and rotated by 30 deg about a fixed axis."""
     T_a = robot.fk(q0)
     axis = np.array([1.0, 2.0, -1.0]) / math.sqrt(6.0)
-    T_b = make_transform(T_a[:3, 3] + [0.12, -0.08, 0.1], so3_exp(math.radians(30.0) * axis) @ T_a[:3, :3])
-    n0 = len(ur5e.traj)
-    resp = ur5e.plan(request(cv.matrix_to_pose_stamped(T_a, ''), cv.matrix_to_pose_stamped(T_b, '')))
-    assert len(resp.plan.poses) > 0
-    msgs = ur5e.wait_trajectories(n0 + 1)
-    arr = check_controller_contract(msgs[-1], robot.joint_names)
-    check_limits(arr, robot.max_velocity, robot.max_acceleration)
+    T_b = make_transform(T_a[:3, 3] + [0.12, -0.08, 0.1],
+                         so3_exp(math.radians(30.0) * axis) @ T_a[:3, :3])
+    req = request(cv.matrix_to_pose_stamped(T_a, frame), cv.matrix_to_pose_stamped(T_b, frame))
+    return req, T_a, T_b
+
+
+def check_line_slerp(robot: Any, arr: cv.TrajectoryArrays, T_a: np.ndarray, T_b: np.ndarray,
+                     atol: float = 1e-6) -> np.ndarray:
+    """Tool path = straight line + slerp with one parameter (exact geodesic for 6 joints)."""
     tool = robot.fk(arr.positions)
     assert_allclose(tool[0], T_a, atol=1e-8)
     assert_allclose(tool[-1], T_b, atol=1e-8)
-    # line + slerp with one parameter (exact geodesic for a 6-joint arm)
     d = T_b[:3, 3] - T_a[:3, 3]
     lam = (tool[:, :3, 3] - T_a[:3, 3]) @ d / (d @ d)
-    assert np.max(np.linalg.norm(tool[:, :3, 3] - (T_a[:3, 3] + lam[:, None] * d), axis=1)) < 1e-6
+    assert np.max(np.linalg.norm(tool[:, :3, 3] - (T_a[:3, 3] + lam[:, None] * d), axis=1)) < atol
     w = so3_log(T_a[:3, :3].T @ T_b[:3, :3])
     R_line = T_a[:3, :3] @ so3_exp(lam[:, None] * w)
-    ang = np.linalg.norm(so3_log(np.swapaxes(R_line, 1, 2) @ tool[:, :3, :3]), axis=1)
-    assert np.max(ang) < 1e-6
+    assert np.max(np.linalg.norm(so3_log(np.swapaxes(R_line, 1, 2) @ tool[:, :3, :3]), axis=1)) < atol
+    assert np.all(np.diff(lam) >= -1e-9)
+    return tool
+
+
+def test_ur5e_line_and_rotation(ur5e: PlannerUnderTest) -> None:
+    robot = load_robot('ur5e')
+    req, T_a, T_b = line_slerp_request(robot, np.array([0.3, -1.2, 1.4, -1.7, -1.5, 0.2]))
+    n0 = len(ur5e.traj)
+    resp = ur5e.plan(req)
+    assert len(resp.plan.poses) > 0
+    msgs = ur5e.wait_trajectories(n0 + 1)
+    assert len(msgs) == n0 + 1
+    arr = check_controller_contract(msgs[-1], robot.joint_names)
+    check_limits(arr, robot.max_velocity, robot.max_acceleration)
+    tool = check_line_slerp(robot, arr, T_a, T_b)
     assert_allclose(cv.path_to_matrices(resp.plan), tool, atol=1e-9)
+
+
+def test_robot_description_with_chain_ends_and_joint_names(start_node: Any, helper: Any,
+                                                            tmp_path: FsPath) -> None:
+    xml = (FsPath(geodesic_planner.__file__).parent / 'data' / 'kr6_like.urdf').read_text()
+    names = [f'axis_{i}' for i in range(1, 7)]
+    params = tmp_path / 'kr6.yaml'
+    params.write_text(yaml.safe_dump({'/kr6/geodesic_planner': {'ros__parameters': {
+        'robot_description': xml, 'base_link': 'kr6_base_link', 'tip_link': 'kr6_tool0',
+        'joint_names': names, 'robot': 'no_such_robot'}}}))     # robot_description wins
+    proc = start_node('geodesic_planner_node', '-r', '__ns:=/kr6', '--params-file', str(params))
+    robot = chain_from_urdf(xml, 'kr6_base_link', 'kr6_tool0')
+    client = helper.create_client(GetPlan, '/kr6/geodesic_planner/plan')
+    traj = Collector(helper, JointTrajectory, '/kr6/geodesic_planner/joint_trajectory',
+                     QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    try:
+        wait_for_service(client, DEADLINE, watch=[proc])
+        wait_until(lambda: traj.subscription.get_publisher_count() > 0, DEADLINE,
+                   what='kr6 trajectory publisher', watch=[proc])
+        req, T_a, T_b = line_slerp_request(robot, np.array([0.2, -1.2, 1.0, 0.3, 0.8, 0.1]),
+                                           frame='kr6_base_link')
+        resp = call_service(client, req, DEADLINE, watch=[proc])
+        assert len(resp.plan.poses) > 0, proc.log_text()
+        assert resp.plan.header.frame_id == 'kr6_base_link'
+        arr = check_controller_contract(traj.wait_for(1, DEADLINE, watch=[proc])[0], names)
+        check_limits(arr, robot.max_velocity, robot.max_acceleration)
+        check_line_slerp(robot, arr, T_a, T_b)
+        req.goal.header.frame_id = 'world'                        # the URDF root is not the base
+        assert len(call_service(client, req, DEADLINE, watch=[proc]).plan.poses) == 0
+        wait_until(lambda: "frame_id 'world' is not the base frame 'kr6_base_link'"
+                   in proc.log_text(), DEADLINE, what='the error line in the node log')
+        assert len(traj) == 1
+    finally:
+        helper.destroy_client(client)
+        helper.destroy_subscription(traj.subscription)
+    assert proc.stop() == 0
+
+
+def test_parameters_have_descriptions(planar: PlannerUnderTest, helper: Any) -> None:
+    client = helper.create_client(DescribeParameters, f'{planar.name}/describe_parameters')
+    names = ['robot', 'robot_description', 'base_link', 'tip_link', 'joint_names', 'metric',
+             'position_weight', 'orientation_weight', 'max_velocity', 'max_acceleration',
+             'velocity_scaling', 'sample_period', 'frame_id', 'plan_timeout']
+    try:
+        wait_for_service(client, DEADLINE, watch=planar.watch)
+        resp = call_service(client, DescribeParameters.Request(names=names), DEADLINE)
+    finally:
+        helper.destroy_client(client)
+    assert [d.name for d in resp.descriptors] == names
+    assert all(d.description for d in resp.descriptors)
+
+
+def test_joint_names_override_at_runtime(planar: PlannerUnderTest) -> None:
+    n0 = len(planar.traj)
+    try:
+        assert all(r.successful for r in planar.set_parameters(joint_names=['a', 'b', 'c']))
+        assert len(planar.plan(paper_request()).plan.poses) > 0
+        arr = check_controller_contract(planar.wait_trajectories(n0 + 1)[-1], ['a', 'b', 'c'])
+        check_line_phi_3r(arr)
+    finally:
+        assert all(r.successful for r in planar.set_parameters(joint_names=[]))
+    assert len(planar.plan(paper_request()).plan.poses) > 0
+    check_controller_contract(planar.wait_trajectories(n0 + 2)[-1], ROBOT_3R.joint_names)
 
 
 # --------------------------------------------------------------------------- process
