@@ -512,9 +512,11 @@ def test_real_node_serves_and_exits_cleanly_on_sigint(tmp_path: Path) -> None:
     try:
         client = runtime.node.create_client(GetPlan, '/geodesic_planner/plan')
         wait_for_service(client, 60, watch=[proc])
+        # Its start-up log line may follow the service's creation: wait for it (output captured).
+        wait_until(lambda: 'planar_3r' in proc.log_text(), 30, what='the start-up log line',
+                   watch=[proc])
         assert proc.stop(timeout=10.0) == 0, proc.log_text()
         assert proc.signals_sent == [signal.SIGINT]
-        assert 'planar_3r' in proc.log_text()
     finally:
         proc.stop(timeout=2.0)
         runtime.shutdown()
