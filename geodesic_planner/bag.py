@@ -304,9 +304,11 @@ class BagRecorder:
         flush_period: longest time (s) data may sit in memory; None disables flushing (data
             reaches the file only at ``close()``).
         typestore: rosbags typestore (default: a fresh ROS 2 Jazzy store).
+        custom_data: string key/values stored in ``metadata.yaml`` (``custom_data``), e.g. the
+            recording node's parameters.
 
     Raises:
-        BagError: unknown storage or non-positive flush period.
+        BagError: unknown storage, non-positive flush period, non-string custom data.
 
     Thread-safe: ``write``/``flush``/``close`` may be called from different threads.
     """
@@ -320,6 +322,7 @@ class BagRecorder:
         qos: Qos | Mapping[str, Qos] | None = None,
         flush_period: float | None = 0.5,
         typestore: Typestore | None = None,
+        custom_data: Mapping[str, str] | None = None,
     ) -> None:
         if storage not in STORAGES:
             msg = f'unknown storage {storage!r}; expected one of {", ".join(STORAGES)}'
@@ -327,6 +330,11 @@ class BagRecorder:
         if flush_period is not None and not (math.isfinite(flush_period) and flush_period > 0):
             msg = f'flush_period must be > 0 s or None, got {flush_period!r}'
             raise BagError(msg)
+        if custom_data is not None and not all(isinstance(k, str) and isinstance(v, str)
+                                               for k, v in custom_data.items()):
+            msg = 'custom_data keys and values must be strings'
+            raise BagError(msg)
+        self._custom_data = dict(custom_data or {})
         self._path = Path(path)
         self._storage = storage
         self._initial_topics = dict(topics or {})
@@ -391,6 +399,8 @@ class BagRecorder:
             if self._typestore is None:
                 self._typestore = make_typestore()
             writer = Writer(self._path, version=9, storage_plugin=_PLUGINS[self._storage])
+            for key, value in self._custom_data.items():
+                writer.set_custom_data(key, value)
             try:
                 writer.open()
             except (WriterError, OSError) as err:
@@ -788,6 +798,7 @@ class BagInfo:
     end_ns: int | None
     topics: list[TopicSummary] = field(default_factory=list)
     trajectories: list[TrajectorySummary] = field(default_factory=list)
+    custom_data: dict[str, str] = field(default_factory=dict)
 
     @property
     def duration(self) -> float:
@@ -820,7 +831,9 @@ def bag_info(path: str | os.PathLike[str]) -> BagInfo:
     """
     src = _OpenBag(path)
     meta = yaml.safe_load((src.path / 'metadata.yaml').read_text()) or {}
-    storage = str((meta.get('rosbag2_bagfile_information') or {}).get('storage_identifier', '?'))
+    bagfile = meta.get('rosbag2_bagfile_information') or {}
+    storage = str(bagfile.get('storage_identifier', '?'))
+    custom = {str(k): str(v) for k, v in (bagfile.get('custom_data') or {}).items()}
     with src as reader:
         first: dict[str, int] = {}
         last: dict[str, int] = {}
@@ -851,7 +864,7 @@ def bag_info(path: str | os.PathLike[str]) -> BagInfo:
     return BagInfo(
         path=src.path, storage=storage, message_count=total,
         start_ns=min(first.values()) if first else None, end_ns=max(last.values()) if last else None,
-        topics=topics, trajectories=trajectories,
+        topics=topics, trajectories=trajectories, custom_data=custom,
     )
 
 

@@ -50,8 +50,10 @@ def format_info(info: BagInfo) -> str:
     lines = [
         f'bag: {info.path} ({info.storage}), {info.message_count} messages, '
         f'{info.duration:.3f} s, start {_utc(info.start_ns)}',
-        'topics:',
     ]
+    if info.custom_data:
+        lines.append('custom data: ' + ', '.join(f'{k}={v}' for k, v in sorted(info.custom_data.items())))
+    lines.append('topics:')
     width = max((len(t.name) for t in info.topics), default=0)
     twidth = max((len(t.msgtype) for t in info.topics), default=0)
     for t in info.topics:

@@ -184,6 +184,16 @@ def test_recorder_errors(tmp_path, ts):
     assert (tmp_path / 'z' / 'metadata.yaml').exists()
 
 
+def test_custom_data_in_metadata(tmp_path, ts):
+    with BagRecorder(tmp_path / 'b', topics={JS: JOINT_STATE}, custom_data={'velocity_scaling': '0.5'}):
+        pass
+    info = bag_info(tmp_path / 'b')
+    assert info.custom_data == {'velocity_scaling': '0.5'}
+    assert 'custom data: velocity_scaling=0.5' in bag_cli.format_info(info)
+    with pytest.raises(BagError, match='custom_data'):
+        BagRecorder(tmp_path / 'c', custom_data={'x': 0.5})
+
+
 def test_empty_directory_is_used_and_exception_still_closes(tmp_path, ts):
     empty = tmp_path / 'empty'
     empty.mkdir()

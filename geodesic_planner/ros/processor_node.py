@@ -217,8 +217,12 @@ class TrajectoryProcessorNode(Node):
             if msgtype not in self._typestore.fielddefs:
                 msg = f'record_topics: unknown message type {msgtype!r}'
                 raise RequestError(msg)
+        custom = {'recorded_by': NODE_NAME, 'input_topic': self.input_topic,
+                  'output_topic': self.output_topic}
+        for name in ('sample_period', 'velocity_scaling'):  # values at start (they may change later)
+            custom[name] = repr(float(self.get_parameter(name).value))
         self.recorder = BagRecorder(path, storage=storage, topics={**topics, **extra},
-                                    typestore=self._typestore)
+                                    typestore=self._typestore, custom_data=custom)
         self.recorder.open()
         where = path if str(path) == str(base) else f'{path} ({base} exists, not overwritten)'
         self.get_logger().info(f'recording {", ".join(self.recorder.topics)} to {where} [{storage}]')
