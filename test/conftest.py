@@ -27,6 +27,9 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         'markers', 'slow: long run; skipped unless --run-slow or GP_RUN_SLOW=1')
     config.addinivalue_line('markers', 'linter: style/consistency checks of the source tree')
+    # rosidl's parser imports lark 0.12, which uses the deprecated sre_parse/sre_constants modules.
+    config.addinivalue_line(
+        'filterwarnings', r'ignore:module .sre_(parse|constants). is deprecated:DeprecationWarning')
 
 
 def _rclpy_import_error() -> str | None:
