@@ -382,7 +382,8 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
         for proc in nodes:
             if proc.alive():
                 proc.stop(timeout=5.0)
-        say(f'demo failed ({type(exc).__name__}: {exc}); node logs:')
+        reason = 'interrupted' if isinstance(exc, KeyboardInterrupt) else f'{type(exc).__name__}: {exc}'
+        say(f'demo failed ({reason}); node logs:')
         for proc in nodes:
             tail = proc.log_tail()
             say(f'--- {proc.name}: exit code {proc.popen.returncode}, log {proc.log_path} ---')
