@@ -381,3 +381,61 @@ def line_slerp_oracle(T_a: np.ndarray, T_b: np.ndarray, s: np.ndarray) -> np.nda
         out[k, :3, 3] = (1 - sk) * T_a[:3, 3] + sk * T_b[:3, 3]
         out[k, 3, 3] = 1.0
     return out
+
+
+# ---------------------------------------------------------------------- presets written out independently
+#: Universal Robots UR5e, published standard DH rows (θ_offset, d, a, α).
+UR5E_DH = [(0.0, 0.1625, 0.0, PI / 2), (0.0, 0.0, -0.425, 0.0), (0.0, 0.0, -0.3922, 0.0),
+           (0.0, 0.1333, 0.0, PI / 2), (0.0, 0.0997, 0.0, -PI / 2), (0.0, 0.0996, 0.0, 0.0)]
+
+
+def ur5e_fk_batch(qs: np.ndarray) -> np.ndarray:
+    return dh_fk_batched(UR5E_DH, ['revolute'] * 6, qs)
+
+
+def arm_fk_batch(spec: dict):
+    """Batched oracle FK of one of EXAMPLE_ARMS."""
+    return lambda qs: dh_fk_batched(spec['rows'], spec['kinds'], qs, base=spec['base'], tool=spec['tool'])
+
+
+def axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    """3x3 rotation by `angle` rad about `axis` (Rodrigues)."""
+    u = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    K = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def moderate_moves(fk_batch, jacobian_min_sv, home: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                   seed: int, n: int, *, spread: float = 0.4, dist: tuple[float, float] = (0.08, 0.2),
+                   angle_deg: tuple[float, float] = (10.0, 30.0), samples: int = 101):
+    """Random start configurations near `home` and goal poses a line + rotation away.
+
+    Returns a list of (q_a, T_a, T_b): T_a = FK(q_a); T_b translated by a random vector of length in
+    `dist` (m) and rotated (body frame) by a random angle in `angle_deg` about a random axis. Only
+    moves whose IK continuation along line + slerp stays inside the limits and away from singular
+    configurations (smallest singular value of the Jacobian > 0.05, via `jacobian_min_sv(q)`) are kept.
+    """
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(50 * n):
+        q_a = np.clip(home + rng.uniform(-spread, spread, home.size), lower, upper)
+        T_a = fk_batch(q_a[None])[0]
+        d = rng.normal(size=3)
+        d *= rng.uniform(*dist) / np.linalg.norm(d)
+        T_b = T_a.copy()
+        T_b[:3, :3] = T_a[:3, :3] @ axis_angle(rng.normal(size=3), np.deg2rad(rng.uniform(*angle_deg)))
+        T_b[:3, 3] += d
+        try:
+            qs = continuation_ik(fk_batch, line_slerp_oracle(T_a, T_b, np.linspace(0, 1, samples)), q_a)
+        except AssertionError:
+            continue
+        if np.abs(np.diff(qs, axis=0)).max() > 0.1:
+            continue
+        if not np.all((qs >= lower) & (qs <= upper)):
+            continue
+        if min(jacobian_min_sv(q) for q in qs) < 0.05:
+            continue
+        out.append((q_a, T_a, T_b))
+        if len(out) == n:
+            return out
+    raise AssertionError('could not generate enough moderate moves')
