@@ -15,9 +15,15 @@ venv="${GP_VENV:-.venv}"
 case "$venv" in /*) ;; *) venv="$root/$venv" ;; esac
 
 # Default target is the whole test/ tree unless a path (or node id) is given.
+# (The value after an option such as -k or -m is not a path, even if a file of that name exists.)
 target=(test)
+skip_next=0
 for a in "$@"; do
-    case "$a" in -*) continue ;; esac
+    if [ "$skip_next" = 1 ]; then skip_next=0; continue; fi
+    case "$a" in
+        -k|-m|-p|-o|-c|-W|--deselect|--ignore|--timeout|--rootdir|--basetemp|--log-level) skip_next=1; continue ;;
+        -*) continue ;;
+    esac
     if [ -e "${a%%::*}" ]; then target=(); break; fi
 done
 
