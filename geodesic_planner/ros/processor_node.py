@@ -51,6 +51,7 @@ from typing import Any
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import NameValidationException, ParameterException
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -151,9 +152,11 @@ class TrajectoryProcessorNode(Node):
         self.callbacks = 0
 
         try:
+            events = SubscriptionEventCallbacks(matched=self._on_input_matched,
+                                                message_lost=self._on_input_lost)
             self.input_sub = self.create_subscription(
                 JointTrajectory, self.get_parameter('input_topic').value, self._on_input, _qos(keep_all=True),
-                raw=True)
+                event_callbacks=events, raw=True)
             self.output_pub = self.create_publisher(
                 JointTrajectory, self.get_parameter('output_topic').value, _qos())
         except (ValueError, TypeError, NameValidationException) as err:
@@ -290,6 +293,15 @@ class TrajectoryProcessorNode(Node):
             f'received {self.received}, published {self.published}, rejected {self.rejected}')
 
     # ------------------------------------------------------------------ processing
+    def _on_input_matched(self, status: Any) -> None:  # noqa: ANN401
+        if status.current_count_change:
+            self.get_logger().info(f'input {self.input_topic}: {status.current_count} publisher(s) matched')
+
+    def _on_input_lost(self, status: Any) -> None:  # noqa: ANN401
+        self.get_logger().error(
+            f'input {self.input_topic}: {status.total_count_change} message(s) lost before reception '
+            f'({status.total_count} in total)')
+
     def _on_input(self, raw: bytes) -> None:
         self.received += 1
         self._record(self.input_topic, raw)

@@ -354,3 +354,113 @@ def test_replay_fixture_bag_reproduces_recorded_output(start_node: Any, ros_node
         assert_allclose(arr.accelerations, rec.accelerations, atol=1e-12)
         assert rec.duration == pytest.approx(rin.duration / f, abs=1e-9)
     p.stop()
+
+
+# =========================================================================== both nodes
+A_3R = (2.5, 1.5, np.radians(30.0))       # paper Table 1: position and yaw of the tool
+B_3R = (1.5, 2.5, np.arctan2(0.7, 0.714))
+
+
+def _pose_3r(x: float, y: float, psi: float) -> Any:
+    from geometry_msgs.msg import PoseStamped
+
+    msg = PoseStamped()
+    msg.pose.position.x, msg.pose.position.y = x, y
+    msg.pose.orientation.z, msg.pose.orientation.w = np.sin(psi / 2), np.cos(psi / 2)
+    return msg
+
+
+def _fk_3r(q: np.ndarray) -> np.ndarray:
+    """Unit-link planar 3R: (N, 3) joints -> (N, 3) rows (x, y, phi)."""
+    c = np.cumsum(q, axis=1)
+    return np.stack([np.cos(c).sum(1), np.sin(c).sum(1), c[:, 2]], axis=1)
+
+
+def _on_line_phi(q: np.ndarray, atol: float) -> None:
+    """Paper example oracle: tool on the straight line A->B, phi linear along it."""
+    xyphi = _fk_3r(q)
+    a, b = np.array(A_3R), np.array(B_3R)
+    d = b[:2] - a[:2]
+    lam = (xyphi[:, :2] - a[:2]) @ d / (d @ d)
+    assert np.max(np.linalg.norm(xyphi[:, :2] - (a[:2] + lam[:, None] * d), axis=1)) < atol
+    assert np.max(np.abs(xyphi[:, 2] - (a[2] + lam * (b[2] - a[2])))) < atol
+
+
+def test_round_trip_planner_processor_bag(start_node: Any, ros_node: Any, tmp_path: Path) -> None:
+    """As a user runs it: plan the paper example, processor at f = 0.5, read both topics back."""
+    from nav_msgs.srv import GetPlan
+
+    planner = start_node('geodesic_planner_node', params={'robot': 'planar_3r'}, name='planner')
+    planned = Collector(ros_node, JointTrajectory, INPUT, QOS)
+    bag = tmp_path / 'bag'
+    p = Processor(start_node, ros_node, {'velocity_scaling': 0.5, 'sample_period': 0.01, 'bag_path': str(bag)})
+    watch = [planner, p.process]
+    client = ros_node.create_client(GetPlan, '/geodesic_planner/plan')
+    wait_for_service(client, DEADLINE, watch=watch)
+    wait_until(lambda: planned.subscription.get_publisher_count() > 0, DEADLINE, what='planner publisher', watch=watch)
+    # the processor's input must see both the planner and this test's publisher before the plan
+    wait_until(lambda: 'input /geodesic_planner/joint_trajectory: 2 publisher(s) matched' in p.process.log_text(),
+               DEADLINE, what='processor matched the planner', watch=watch)
+    response = call_service(client, GetPlan.Request(start=_pose_3r(*A_3R), goal=_pose_3r(*B_3R)), DEADLINE,
+                            watch=watch)
+    assert response.plan.poses
+    (plan_msg,) = planned.wait_for(1, DEADLINE, watch=watch)
+    (out,) = p.wait_outputs(1)
+
+    pin, pout = cv.joint_trajectory_to_arrays(plan_msg), cv.joint_trajectory_to_arrays(out)
+    assert list(out.joint_names) == list(plan_msg.joint_names)
+    ns = np.array([x.time_from_start.sec * 10**9 + x.time_from_start.nanosec for x in out.points])
+    assert_array_equal(ns[:-1], np.arange(len(ns) - 1) * 10_000_000)          # every 0.01 s
+    plan_end_ns = plan_msg.points[-1].time_from_start.sec * 10**9 + plan_msg.points[-1].time_from_start.nanosec
+    assert abs(ns[-1] - 2 * plan_end_ns) <= 1                                  # twice as long
+    assert_array_equal(pout.positions[-1], pin.positions[-1])                   # same end
+    assert_array_equal(pout.velocities[-1], 0.0)                               # at rest
+    assert_array_equal(pout.accelerations[-1], 0.0)
+    # same path: output at 2 t_k is the planner's point k; every output point on the paper's line
+    k = np.arange(len(pin.t) - 1)
+    assert_allclose(pout.positions[2 * k], pin.positions[k], atol=1e-9)
+    assert_allclose(pout.velocities[2 * k], 0.5 * pin.velocities[k], atol=1e-9)
+    assert_allclose(pout.accelerations[2 * k], 0.25 * pin.accelerations[k], atol=1e-9)
+    _on_line_phi(pout.positions, atol=1e-5)
+
+    log = p.stop(signal.SIGINT)
+    assert bag_dir(log) == bag
+    (rec_in,) = decoded(bag, INPUT)
+    (rec_out,) = decoded(bag, OUTPUT)
+    assert list(rec_in.joint_names) == list(plan_msg.joint_names)
+    assert_array_equal(np.array([x.positions for x in rec_in.points]), pin.positions)
+    assert_array_equal(np.array([x.accelerations for x in rec_out.points]), pout.accelerations)
+    assert [x.time_from_start.nanosec for x in rec_out.points] == [x.time_from_start.nanosec for x in out.points]
+    assert planner.stop() == 0
+
+
+def test_sigkill_then_repair_recovers_flushed_messages(start_node: Any, ros_node: Any, tmp_path: Path) -> None:
+    """After SIGKILL the bag has no metadata; geodesic-bag repair restores everything flushed."""
+    import shutil
+
+    from geodesic_planner.bag import repair
+    from geodesic_planner.errors import BagError
+
+    bag = tmp_path / 'bag'
+    p = Processor(start_node, ros_node, {'bag_path': str(bag)})
+    for k in range(5):
+        p.pub.publish(known_trajectory(Q0, Q1 + 0.1 * k))
+    outs = p.wait_outputs(5)
+
+    def flushed() -> bool:  # the data is on disk once a copy of the directory repairs to 10 messages
+        probe = tmp_path / f'probe{flushed.n}'
+        flushed.n += 1
+        shutil.copytree(bag, probe)
+        try:
+            return sum(repair(probe).messages.values()) == 10
+        except BagError:
+            return False
+    flushed.n = 0
+    wait_until(flushed, 10.0, what='the recorder to flush 10 messages', watch=p.watch)
+    assert p.process.stop(signal.SIGKILL) == -signal.SIGKILL
+    assert not (bag / 'metadata.yaml').exists()
+    report = repair(bag)
+    assert report.repaired
+    assert report.messages[INPUT] == 5 and report.messages[OUTPUT] == 5
+    for out, rec in zip(outs, read_trajectories(bag, OUTPUT)):
+        assert_array_equal(rec.positions, cv.joint_trajectory_to_arrays(out).positions)
