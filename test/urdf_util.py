@@ -439,3 +439,22 @@ def moderate_moves(fk_batch, jacobian_min_sv, home: np.ndarray, lower: np.ndarra
         if len(out) == n:
             return out
     raise AssertionError('could not generate enough moderate moves')
+
+#: Franka Panda, published modified DH rows (α_prev, a_prev, d, θ_offset); flange 0.107 m along z.
+PANDA_MDH = [(0.0, 0.0, 0.333, 0.0), (-PI / 2, 0.0, 0.0, 0.0), (PI / 2, 0.0, 0.316, 0.0),
+             (PI / 2, 0.0825, 0.0, 0.0), (-PI / 2, -0.0825, 0.384, 0.0), (PI / 2, 0.0, 0.0, 0.0),
+             (PI / 2, 0.088, 0.0, 0.0)]
+
+
+def panda_fk_batch(qs: np.ndarray) -> np.ndarray:
+    return dh_fk_batched(PANDA_MDH, ['revolute'] * 7, qs, modified=True, tool=tr(z=0.107))
+
+
+def tool_deviation(fk_batch, qs: np.ndarray, T_a: np.ndarray, T_b: np.ndarray, s: np.ndarray):
+    """Largest position (m) and rotation (rad) distance of FK(qs) from line + slerp at s."""
+    T = fk_batch(qs)
+    O = line_slerp_oracle(T_a, T_b, s)
+    dp = np.linalg.norm(T[:, :3, 3] - O[:, :3, 3], axis=1)
+    Rrel = np.swapaxes(T[:, :3, :3], 1, 2) @ O[:, :3, :3]
+    ang = np.arccos(np.clip((np.trace(Rrel, axis1=1, axis2=2) - 1) / 2, -1, 1))
+    return float(dp.max()), float(ang.max())
