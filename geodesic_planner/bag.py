@@ -196,9 +196,10 @@ def _to_rosbags(obj: Any, msgtype: str, typestore: Typestore) -> object:  # noqa
                 dtype = _NUMPY_TYPES[sub_detail[0]]
                 if isinstance(value, (bytes, bytearray)):
                     kwargs[name] = np.frombuffer(bytes(value), dtype=np.uint8).astype(dtype)
-                else:
-                    kwargs[name] = np.array(
-                        [ord(v) if isinstance(v, bytes) else v for v in value], dtype=dtype)
+                elif len(value) and isinstance(value[0], bytes):  # rclpy byte[]: list of bytes
+                    kwargs[name] = np.array([ord(v) for v in value], dtype=dtype)
+                else:  # array.array, list, numpy: one buffer copy
+                    kwargs[name] = np.array(value, dtype=dtype)
             elif sub_type == Nodetype.BASE:
                 kwargs[name] = [str(v) for v in value]
             else:
