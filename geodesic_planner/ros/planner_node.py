@@ -61,13 +61,15 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from .. import GeodesicPlanner, load_robot
-from ..errors import GeodesicPlannerError, RequestError
+from ..errors import GeodesicPlannerError, LimitError, RequestError
 from . import conversions as cv
 
 NODE_NAME = 'geodesic_planner'
 #: Robot used when neither ``robot`` nor ``robot_description`` is given: the paper's planar 3R arm.
 DEFAULT_ROBOT = 'planar_3r'
 METRICS = ('paper', 'position')
+#: Largest number of points in a published trajectory (bounds memory and time per request).
+MAX_POINTS = 100_000
 
 _ROBOT_KEYS = ('robot', 'robot_description', 'base_link', 'tip_link')
 _STRING, _DOUBLE, _DOUBLES, _STRINGS = 'string', 'double', 'double array', 'string array'
@@ -324,6 +326,11 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
     f = config.velocity_scaling
     trajectory = path.timed(max_velocity=config.max_velocity * f,
                             max_acceleration=config.max_acceleration * f * f)
+    points = int(trajectory.duration / config.sample_period) + 2
+    if points > MAX_POINTS:
+        raise LimitError(
+            f'the trajectory would have {points} points ({trajectory.duration:.3g} s every '
+            f'{config.sample_period:g} s), more than {MAX_POINTS}: increase sample_period')
     t, q, dq, ddq = trajectory.sample(config.sample_period)
     msg = cv.arrays_to_joint_trajectory(list(config.joint_names), t, q, dq, ddq)
     problems = cv.validate_joint_trajectory(msg)
@@ -359,13 +366,10 @@ class GeodesicPlannerNode(Node):
         for name, (default, kind, description, constraints) in PARAMETERS.items():
             descriptor = ParameterDescriptor(
                 description=description, additional_constraints=f'{kind}; {constraints}'.rstrip('; '))
-            if kind == _STRING:
-                self.declare_parameter(name, default, descriptor)
-            else:
-                # Numbers and arrays are typed by the callback (ints accepted for doubles,
-                # empty arrays of any element type accepted).
-                descriptor.dynamic_typing = True
-                self.declare_parameter(name, default, descriptor)
+            # Numbers and arrays are type-checked by build_config instead of rclpy: ints are
+            # accepted for doubles, and an empty array of any element type means "defaults".
+            descriptor.dynamic_typing = kind != _STRING
+            self.declare_parameter(name, default, descriptor)
         self._config_lock = threading.Lock()
         self._config = build_config(self._parameter_values())
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -487,7 +491,7 @@ class GeodesicPlannerNode(Node):
             self._abandoned += 1
             self.get_logger().error(
                 f'plan failed: timed out after {config.plan_timeout:g} s (plan_timeout); '
-                'the computation is abandoned and its result will be discarded')
+                f'the computation is abandoned and its result discarded ({self._abandoned} so far)')
             return response
         err = box.get('error')
         if isinstance(err, GeodesicPlannerError):

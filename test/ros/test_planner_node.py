@@ -457,7 +457,7 @@ def test_velocity_scaling_is_time_scaling_and_limits_apply(planar: PlannerUnderT
         planar.set_parameters(velocity_scaling=1.0, max_velocity=[], max_acceleration=[])
 
 
-def test_sample_period_parameter(planar: PlannerUnderTest) -> None:
+def test_sample_period_parameter(planar: PlannerUnderTest, rosout: Collector) -> None:
     n0 = len(planar.traj)
     try:
         assert all(r.successful for r in planar.set_parameters(sample_period=0.05))
@@ -466,8 +466,17 @@ def test_sample_period_parameter(planar: PlannerUnderTest) -> None:
         steps = np.diff(arr.t)
         assert_allclose(steps[:-1], 0.05, atol=1e-9)
         assert 0.0 < steps[-1] <= 0.05 + 1e-9
+        # a period so small that the message would be huge: refused with the cause, not built
+        k0 = len(rosout)
+        assert all(r.successful for r in planar.set_parameters(sample_period=1e-7))
+        assert len(planar.plan(paper_request()).plan.poses) == 0
+        wait_log(rosout, k0, planar.logger, ERROR, 'increase sample_period')
     finally:
         planar.set_parameters(sample_period=0.01)
+    assert len(planar.plan(paper_request()).plan.poses) > 0
+    msgs = planar.wait_trajectories(n0 + 2)
+    assert len(msgs) == n0 + 2
+    check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
 
 
 # --------------------------------------------------------------------------- joint states
