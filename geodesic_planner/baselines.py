@@ -10,7 +10,8 @@
 
 Both return paths with the same contract as a geodesic path: ``evaluate(s) -> (q, q', q'', q''')``
 over s in [0, 1] (derivatives w.r.t. s), ``joint_names``, ``robot``, ``ee_poses(s)`` and
-``timed(...)``.
+``timed(...)``, plus ``breakpoints`` (the knots, where higher derivatives jump; the time
+parameterization reads one-sided derivatives there).
 """
 from __future__ import annotations
 
@@ -175,6 +176,11 @@ class PolynomialPath(_SplinePath):
         self.end_velocity = end_velocity
         self._spline = CubicHermiteSpline(self.s_via, self.q_via, self.dq_via, axis=0)
 
+    @property
+    def breakpoints(self) -> np.ndarray:
+        """Knots in s (the via points): q'' and q''' jump there (the path is C1)."""
+        return self.s_via
+
     def coefficients(self) -> np.ndarray:
         """Cubic coefficients per segment and joint, local variable ``u = s - s_k``.
 
@@ -200,6 +206,11 @@ class CartesianIKPath(_SplinePath):
         self.q_samples = np.asarray(q_samples, dtype=float)
         bc = 'not-a-knot' if self.s_samples.size >= 4 else 'natural'
         self._spline = CubicSpline(self.s_samples, self.q_samples, axis=0, bc_type=bc)
+
+    @property
+    def breakpoints(self) -> np.ndarray:
+        """Knots in s (the samples): q''' jumps there (the spline is C2)."""
+        return self.s_samples
 
 
 def _ik_along_line(robot: Any, T_start: np.ndarray, T_goal: np.ndarray, s: np.ndarray,

@@ -3,27 +3,33 @@
 The paper (Lemma 2) notes that a geodesic's speed is set by rescaling its parameter. This module
 turns that into a practical time law ``s(t)`` for any path ``q(s)``, ``s`` in [0, 1]:
 
-1. **Time-optimal profile** (TOPP-RA-like, Pham & Pham 2018): on a uniform grid of ``s`` the squared
-   path speed ``x = sdot^2`` is computed by a backward pass (largest ``x`` from which the end can
-   still be reached at rest) and a greedy forward pass (largest admissible ``sddot``), subject to
+1. **Sampling**: the path is evaluated once, on a uniform grid of s plus its breakpoints
+   (``path.breakpoints``, optional; one-sided derivatives are read there). Between the nodes, q'
+   and q'' are cubic-Hermite interpolated from the exact q', q'', q''' at the nodes.
+2. **Time-optimal profile** (TOPP-RA-like, Pham & Pham 2018): the squared path speed
+   ``x = sdot^2`` is computed by a backward pass (largest ``x`` from which the end can still be
+   reached at rest) and a greedy forward pass (largest admissible ``sddot``), subject to
    ``|q'(s) sdot| <= vmax`` and ``|q'(s) sddot + q''(s) sdot^2| <= amax`` per joint. ``sddot`` is
-   constant per grid interval, so the optimal law ``s*(t)`` is piecewise quadratic in time; its
-   duration is :attr:`Trajectory.topp_duration`.
-2. **Smoothing**: ``s*(t)`` has acceleration jumps (bang-bang), including at both ends. It is
-   convolved with a triangular kernel of half-width ``tau = smoothing * T* / 2``, done exactly:
+   constant per step, so the optimal law ``s*(t)`` is piecewise quadratic in time; its duration
+   is :attr:`Trajectory.topp_duration`. Where q' jumps (a corner between the pieces of a
+   piecewise geodesic) the profile is forced to rest.
+3. **Smoothing**: ``s*(t)`` has acceleration jumps (bang-bang), including at both ends. Each
+   rest-to-rest piece is convolved with a triangular kernel of half-width
+   ``tau = smoothing * T* / 2``, done exactly:
    ``s(t) = (S2(t + tau) - 2 S2(t) + S2(t - tau)) / tau^2`` with ``S2`` the second antiderivative
-   of ``s*`` (``s*`` = 0 before the start, 1 after the end). Hence ``sddot`` is the second central
-   difference of ``s*`` (continuous), the jerk is bounded, and both ends have zero velocity AND zero
-   acceleration. The duration becomes ``T* + 2 tau``.
-3. **Guarantee**: the law is checked on a dense time grid against the full limits; if smoothing
-   pushed any joint over a limit, time is stretched uniformly (``t -> lambda t`` divides velocities
-   by ``lambda`` and accelerations by ``lambda^2``) until every sample is within limits with a
-   small margin. :attr:`Trajectory.optimality_ratio` reports ``min_duration / topp_duration``.
-4. ``duration=`` stretches the law uniformly to exactly that duration (never shorter than the
+   of ``s*`` (constant before its start and after its end). Hence ``sddot`` is the second central
+   difference of ``s*`` (continuous), the jerk is bounded, and every rest (both ends, corners)
+   has zero velocity AND zero acceleration. Each piece lasts ``T* + 2 tau``.
+4. **Guarantee**: the law is checked on a dense time grid against the full limits; if smoothing
+   pushed any joint over a limit, time is stretched uniformly (``t -> lambda t`` divides
+   velocities by ``lambda`` and accelerations by ``lambda^2``) until every sample is within
+   ``1 - CHECK_MARGIN`` of the limits. :attr:`Trajectory.optimality_ratio` reports
+   ``min_duration / topp_duration`` (about ``1 + smoothing``).
+5. ``duration=`` stretches the law uniformly to exactly that duration (never shorter than the
    minimum, which the error names).
 
 The path never changes: ``q(t) = path.q(s(t))``, ``dq/dt = q' sdot``,
-``d2q/dt2 = q' sddot + q'' sdot^2``.
+``d2q/dt2 = q' sddot + q'' sdot^2``, evaluated exactly from the path.
 """
 from __future__ import annotations
 
@@ -77,100 +83,95 @@ def _limits(value: Any, default: Any, dof: int, joint_names: list[str], what: st
 
 
 @dataclass(frozen=True, eq=False)
-class _TimeLaw:
-    """Smoothed time-optimal law s(t) on [0, T* + 2 tau] (before the uniform time scale)."""
+class _PathSamples:
+    """Exact path derivatives at the nodes; one-sided (left/right) values at breakpoints."""
 
-    t_k: np.ndarray    # (N+1,) times of the grid points in s*(t), s
-    s_k: np.ndarray    # (N+1,) grid of s
-    v_k: np.ndarray    # (N+1,) sdot* at the grid points, 1/s
-    u_k: np.ndarray    # (N,) sddot* per interval, 1/s^2
-    S1_k: np.ndarray   # (N+1,) integral of s* from 0 to t_k
-    S2_k: np.ndarray   # (N+1,) double integral of s*
-    tau: float         # half-width of the triangular kernel, s
+    s: np.ndarray                 # (n+1,) nodes
+    aL: np.ndarray                # first derivative arriving at a node (from the left), (n+1, dof)
+    aR: np.ndarray                # first derivative leaving a node (to the right)
+    bL: np.ndarray                # second derivative, left / right
+    bR: np.ndarray
+    cL: np.ndarray                # third derivative, left / right
+    cR: np.ndarray
+    stop: np.ndarray              # (n+1,) bool: the first derivative jumps here (a corner)
 
-    @property
-    def t_star(self) -> float:
-        return float(self.t_k[-1])
-
-    @property
-    def duration(self) -> float:
-        return self.t_star + 2.0 * self.tau
-
-    def _star(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """s*, sdot*, S1, S2 at times t (any shape); s* = 0 before 0 and 1 after T*."""
-        T = self.t_star
-        n = self.u_k.size
-        tc = np.clip(t, 0.0, T)
-        k = np.clip(np.searchsorted(self.t_k, tc, side='right') - 1, 0, n - 1)
-        r = tc - self.t_k[k]
-        s0, v0, u = self.s_k[k], self.v_k[k], self.u_k[k]
-        s = s0 + v0 * r + u * r**2 / 2.0
-        sd = v0 + u * r
-        S1 = self.S1_k[k] + s0 * r + v0 * r**2 / 2.0 + u * r**3 / 6.0
-        S2 = self.S2_k[k] + self.S1_k[k] * r + s0 * r**2 / 2.0 + v0 * r**3 / 6.0 + u * r**4 / 24.0
-        before = t < 0.0
-        after = t > T
-        if np.any(after):
-            e = np.where(after, t - T, 0.0)
-            S1T, S2T = self.S1_k[-1], self.S2_k[-1]
-            s = np.where(after, 1.0, s)
-            sd = np.where(after, 0.0, sd)
-            S1 = np.where(after, S1T + e, S1)
-            S2 = np.where(after, S2T + S1T * e + e**2 / 2.0, S2)
-        if np.any(before):
-            s, sd, S1, S2 = (np.where(before, 0.0, a) for a in (s, sd, S1, S2))
-        return s, sd, S1, S2
-
-    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """s, sdot, sddot, sdddot at law times t (clipped to [0, duration])."""
-        t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
-        tau = self.tau
-        c = t - tau
-        sp, vp, S1p, S2p = self._star(c + tau)
-        s0, v0, S10, S20 = self._star(c)
-        sm, vm, S1m, S2m = self._star(c - tau)
-        inv = 1.0 / tau**2
-        s = (S2p - 2.0 * S20 + S2m) * inv
-        sd = (S1p - 2.0 * S10 + S1m) * inv
-        sdd = (sp - 2.0 * s0 + sm) * inv
-        sddd = (vp - 2.0 * v0 + vm) * inv
-        s = np.clip(s, 0.0, 1.0)
-        sd = np.maximum(sd, 0.0)
-        # Exact ends: at rest, at s = 0 and s = 1.
-        end = t >= self.duration
-        start = t <= 0.0
-        s = np.where(end, 1.0, np.where(start, 0.0, s))
-        zero = end | start
-        sd, sdd, sddd = (np.where(zero, 0.0, a) for a in (sd, sdd, sddd))
-        return s, sd, sdd, sddd
+    def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """First and second derivatives at ``s`` by cubic Hermite interpolation on each step."""
+        n = self.s.size - 1
+        k = np.clip(np.searchsorted(self.s, s, side='right') - 1, 0, n - 1)
+        h = (self.s[k + 1] - self.s[k])[:, None]
+        x = ((s - self.s[k])[:, None]) / h
+        x2, x3 = x * x, x * x * x
+        h00, h10, h01, h11 = 2 * x3 - 3 * x2 + 1, x3 - 2 * x2 + x, -2 * x3 + 3 * x2, x3 - x2
+        a = h00 * self.aR[k] + h10 * h * self.bR[k] + h01 * self.aL[k + 1] + h11 * h * self.bL[k + 1]
+        b = h00 * self.bR[k] + h10 * h * self.cR[k] + h01 * self.bL[k + 1] + h11 * h * self.cL[k + 1]
+        return a, b
 
 
-def _topp(a: np.ndarray, b: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
-    """Time-optimal x = sdot^2 on a uniform s grid (rest at both ends), TOPP-RA-like.
+#: Offset (in s) used to read the left-hand derivatives at a breakpoint.
+_LEFT_EPS = 1e-12
+#: Relative jump of q' at a breakpoint above which the path has a corner (the law rests there).
+CORNER_TOLERANCE = 1e-5
+
+
+def _sample_path(path: Any, grid_points: int) -> _PathSamples:
+    """Evaluate the path once: a uniform grid plus its breakpoints (``path.breakpoints``, optional)."""
+    uniform = np.linspace(0.0, 1.0, grid_points + 1)
+    raw = getattr(path, 'breakpoints', None)
+    interior = np.zeros(0)
+    if raw is not None:
+        arr = np.asarray(raw, dtype=float).reshape(-1)
+        arr = arr[np.isfinite(arr)]
+        interior = np.unique(arr[(arr > 1e-9) & (arr < 1.0 - 1e-9)])
+    if interior.size:
+        near = np.min(np.abs(uniform[:, None] - interior[None, :]), axis=1) < 1e-9
+        nodes = np.sort(np.concatenate([uniform[~near], interior]))
+    else:
+        nodes = uniform
+    s_eval = np.concatenate([nodes, interior - _LEFT_EPS])
+    _, a, b, c = (np.asarray(v, dtype=float) for v in path.evaluate(s_eval))
+    if a.ndim != 2 or a.shape[0] != s_eval.size:
+        raise LimitError(f'path.evaluate returned shape {a.shape}, expected ({s_eval.size}, dof)')
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(c))):
+        raise LimitError('path derivatives contain NaN or inf')
+    m = nodes.size
+    aR, bR, cR = a[:m], b[:m], c[:m]
+    aL, bL, cL = aR.copy(), bR.copy(), cR.copy()
+    stop = np.zeros(m, dtype=bool)
+    if interior.size:
+        idx = np.searchsorted(nodes, interior)
+        aL[idx], bL[idx], cL[idx] = a[m:], b[m:], c[m:]
+        scale = np.maximum(np.abs(aL[idx]).max(axis=1), np.abs(aR[idx]).max(axis=1))
+        jump = np.abs(aL[idx] - aR[idx]).max(axis=1)
+        stop[idx] = jump > CORNER_TOLERANCE * np.maximum(scale, 1e-300)
+    return _PathSamples(nodes, aL, aR, bL, bR, cL, cR, stop)
+
+
+def _topp(ps: _PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
+    """Time-optimal x = sdot^2 at the nodes (rest at both ends and at corners), TOPP-RA-like.
 
     Interpolation discretization: on step k, ``u_k`` (sddot) is constant and the acceleration
-    constraints hold at both s_k (with x_k) and s_{k+1} (with x_{k+1} = x_k + 2 h u_k); this keeps
-    the profile honest near zero-inertia points (a joint turning round, q' = 0).
+    constraints hold at both ends of the step, at s_k with x_k and at s_{k+1} with
+    x_{k+1} = x_k + 2 h_k u_k; this keeps the profile honest near zero-inertia points (a joint
+    turning round, q' = 0).
 
     Args:
-        a: q'(s_k), shape (N+1, dof).
-        b: q''(s_k), shape (N+1, dof).
+        ps: path derivatives at the nodes.
         vmax, amax: limits, shape (dof,).
     Returns:
-        x, shape (N+1,), x[0] = x[N] = 0.
+        x, shape (n+1,), zero at both ends and at corners.
     Raises:
         LimitError: the path cannot be traversed (zero speed forced over a whole step).
     """
-    n = a.shape[0] - 1
-    delta = 1.0 / n
-    absa_grid = np.abs(a)
-    scale_v = max(float(absa_grid.max()), 1e-300)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        mov_v = absa_grid > 1e-12 * scale_v
-        xv = np.where(mov_v, (vmax / np.where(mov_v, absa_grid, 1.0)) ** 2, np.inf).min(axis=1)
+    n = ps.s.size - 1
+    dl = np.diff(ps.s)[:, None]                                   # (n, 1) step lengths
+    with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+        absa_n = np.maximum(np.abs(ps.aL), np.abs(ps.aR))
+        mov_v = absa_n > 1e-12 * max(float(absa_n.max()), 1e-300)
+        xv = np.where(mov_v, (vmax / np.where(mov_v, absa_n, 1.0)) ** 2, np.inf).min(axis=1)
         # Rows of step k: |ra u + rb x_k| <= rl.
-        ra = np.concatenate([a[:-1], a[1:] + 2.0 * delta * b[1:]], axis=1)   # (N, 2 dof)
-        rb = np.concatenate([b[:-1], b[1:]], axis=1)
+        ra = np.concatenate([ps.aR[:-1], ps.aL[1:] + 2.0 * dl * ps.bL[1:]], axis=1)   # (n, 2 dof)
+        rb = np.concatenate([ps.bR[:-1], ps.bL[1:]], axis=1)
         rl = np.concatenate([amax, amax])
         absa = np.abs(ra)
         moving = absa > 1e-12 * max(float(absa.max()), 1e-300)
@@ -187,56 +188,169 @@ def _topp(a: np.ndarray, b: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> n
         pair_ok = moving[:, :, None] & moving[:, None, :] & (diff > 0)
         xp = np.where(pair_ok, rhs / np.where(pair_ok, diff, 1.0), np.inf).min(axis=(1, 2))
         # Lower bound u >= -x / (2 h) (x_{k+1} >= 0) against the upper bounds.
-        coef = -1.0 / (2.0 * delta) - alpha
+        coef = -1.0 / (2.0 * dl) - alpha
         lo_ok = moving & (coef > 0)
         xl = np.where(lo_ok, d / np.where(lo_ok, coef, 1.0), np.inf).min(axis=1)
         static = np.minimum.reduce([xv[:-1], xz, xp, xl, np.full(n, _X_CAP)])
         # Dynamic bound: alpha_j x + c_j <= (hi_{k+1} - x) / (2 h)
         #   <=> x (1 + 2 h alpha_j) <= hi_{k+1} - 2 h c_j.
-        den = 1.0 + 2.0 * delta * alpha
+        den = 1.0 + 2.0 * dl * alpha
         dyn_ok = moving & (den > 0)
         A = np.where(dyn_ok, 1.0 / np.where(dyn_ok, den, 1.0), 0.0)
-        B = np.where(dyn_ok, -2.0 * delta * c / np.where(dyn_ok, den, 1.0), np.inf)
-    static = np.maximum(static, 0.0)
-    hi = np.empty(n + 1)
-    hi[n] = 0.0
+        B = np.where(dyn_ok, -2.0 * dl * c / np.where(dyn_ok, den, 1.0), np.inf)
+    static = np.where(ps.stop[:-1], 0.0, np.maximum(static, 0.0))
+    # Backward pass: largest x_k from which the end (and every corner) is reached at rest.
+    # Plain floats: the passes are sequential by nature and short (a few hundred nodes).
+    hi = [0.0] * (n + 1)
     h = 0.0
+    A_l, B_l, st_l = A.tolist(), B.tolist(), static.tolist()
     for k in range(n - 1, -1, -1):
-        h = min(float(static[k]), float(np.min(A[k] * h + B[k])))
+        h = min([st_l[k]] + [ak * h + bk for ak, bk in zip(A_l[k], B_l[k])])
         hi[k] = h
     # Forward pass: greedy largest sddot.
-    x = np.empty(n + 1)
-    x[0] = 0.0
+    x = [0.0] * (n + 1)
     xk = 0.0
-    has_rows = moving.any(axis=1)
+    al_l, d_l, dl_l = alpha.tolist(), d.tolist(), dl[:, 0].tolist()
     for k in range(n):
-        u = (hi[k + 1] - xk) / (2.0 * delta)
-        if has_rows[k]:
-            u = min(u, float(np.min(alpha[k] * xk + d[k])))
-        xk = min(max(xk + 2.0 * delta * u, 0.0), hi[k + 1])
+        two_h = 2.0 * dl_l[k]
+        u = min([(hi[k + 1] - xk) / two_h] + [ak * xk + dk for ak, dk in zip(al_l[k], d_l[k])])
+        xk = min(max(xk + two_h * u, 0.0), hi[k + 1])
         x[k + 1] = xk
-    x[n] = 0.0
-    stuck = (x[:-1] <= 0.0) & (x[1:] <= 0.0)
+    out = np.array(x)
+    out[n] = 0.0
+    stuck = (out[:-1] <= 0.0) & (out[1:] <= 0.0)
     if np.any(stuck):
         k = int(np.argmax(stuck))
-        raise LimitError(f'path cannot be traversed under the limits: speed forced to zero at s = {k * delta:.6g}')
-    return x
+        raise LimitError(f'path cannot be traversed under the limits: speed forced to zero at s = {ps.s[k]:.6g}')
+    return out
 
 
-def _build_law(s_grid: np.ndarray, x: np.ndarray, smoothing: float) -> _TimeLaw:
-    """Exact piecewise-quadratic s*(t) from x on the grid, plus its integrals."""
-    delta = float(s_grid[1] - s_grid[0])
+@dataclass(frozen=True, eq=False)
+class _TimeLaw:
+    """One rest-to-rest piece of the smoothed law: s(t) from s_start to s_end on [0, T* + 2 tau].
+
+    ``s*`` (the time-optimal law) is stored relative to ``s_start``: 0 before its start, ``span``
+    after its end.
+    """
+
+    t_k: np.ndarray    # (N+1,) times of the nodes in s*(t), s
+    s_k: np.ndarray    # (N+1,) node s relative to s_start
+    v_k: np.ndarray    # (N+1,) sdot* at the nodes, 1/s
+    u_k: np.ndarray    # (N,) sddot* per step, 1/s^2
+    S1_k: np.ndarray   # (N+1,) integral of s* from 0 to t_k
+    S2_k: np.ndarray   # (N+1,) double integral of s*
+    tau: float         # half-width of the triangular kernel, s
+    s_start: float
+    s_end: float
+
+    @property
+    def t_star(self) -> float:
+        return float(self.t_k[-1])
+
+    @property
+    def duration(self) -> float:
+        return self.t_star + 2.0 * self.tau
+
+    def _star(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """s*, sdot*, S1, S2 at times t (s* = 0 before 0 and span after T*)."""
+        T = self.t_star
+        n = self.u_k.size
+        span = float(self.s_k[-1])
+        tc = np.clip(t, 0.0, T)
+        k = np.clip(np.searchsorted(self.t_k, tc, side='right') - 1, 0, n - 1)
+        r = tc - self.t_k[k]
+        s0, v0, u = self.s_k[k], self.v_k[k], self.u_k[k]
+        s = s0 + v0 * r + u * r**2 / 2.0
+        sd = v0 + u * r
+        S1 = self.S1_k[k] + s0 * r + v0 * r**2 / 2.0 + u * r**3 / 6.0
+        S2 = self.S2_k[k] + self.S1_k[k] * r + s0 * r**2 / 2.0 + v0 * r**3 / 6.0 + u * r**4 / 24.0
+        after = t > T
+        if np.any(after):
+            e = np.where(after, t - T, 0.0)
+            S1T, S2T = self.S1_k[-1], self.S2_k[-1]
+            s = np.where(after, span, s)
+            sd = np.where(after, 0.0, sd)
+            S1 = np.where(after, S1T + span * e, S1)
+            S2 = np.where(after, S2T + S1T * e + span * e**2 / 2.0, S2)
+        before = t < 0.0
+        if np.any(before):
+            s, sd, S1, S2 = (np.where(before, 0.0, a) for a in (s, sd, S1, S2))
+        return s, sd, S1, S2
+
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """s, sdot, sddot, sdddot at local times t (clipped to [0, duration])."""
+        t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        tau = self.tau
+        c = t - tau
+        sp, vp, S1p, S2p = self._star(c + tau)
+        s0, v0, S10, S20 = self._star(c)
+        sm, vm, S1m, S2m = self._star(c - tau)
+        inv = 1.0 / tau**2
+        s = (S2p - 2.0 * S20 + S2m) * inv
+        sd = np.maximum((S1p - 2.0 * S10 + S1m) * inv, 0.0)
+        sdd = (sp - 2.0 * s0 + sm) * inv
+        sddd = (vp - 2.0 * v0 + vm) * inv
+        s = self.s_start + np.clip(s, 0.0, float(self.s_k[-1]))
+        # Exact ends: at rest, at s_start and s_end.
+        end = t >= self.duration
+        start = t <= 0.0
+        s = np.where(end, self.s_end, np.where(start, self.s_start, s))
+        zero = end | start
+        sd, sdd, sddd = (np.where(zero, 0.0, a) for a in (sd, sdd, sddd))
+        return s, sd, sdd, sddd
+
+
+def _build_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -> _TimeLaw:
+    """Exact piecewise-quadratic s*(t) of one rest-to-rest piece, its integrals and smoothing width."""
+    rel = s_nodes - s_nodes[0]
+    dl = np.diff(rel)
     v = np.sqrt(x)
-    dt = 2.0 * delta / (v[:-1] + v[1:])
-    u = (x[1:] - x[:-1]) / (2.0 * delta)
+    dt = 2.0 * dl / (v[:-1] + v[1:])
+    u = (x[1:] - x[:-1]) / (2.0 * dl)
     t_k = np.concatenate([[0.0], np.cumsum(dt)])
-    s_k = s_grid
-    inc1 = s_k[:-1] * dt + v[:-1] * dt**2 / 2.0 + u * dt**3 / 6.0
+    inc1 = rel[:-1] * dt + v[:-1] * dt**2 / 2.0 + u * dt**3 / 6.0
     S1 = np.concatenate([[0.0], np.cumsum(inc1)])
-    inc2 = S1[:-1] * dt + s_k[:-1] * dt**2 / 2.0 + v[:-1] * dt**3 / 6.0 + u * dt**4 / 24.0
+    inc2 = S1[:-1] * dt + rel[:-1] * dt**2 / 2.0 + v[:-1] * dt**3 / 6.0 + u * dt**4 / 24.0
     S2 = np.concatenate([[0.0], np.cumsum(inc2)])
     tau = 0.5 * smoothing * float(t_k[-1])
-    return _TimeLaw(t_k=t_k, s_k=s_k, v_k=v, u_k=u, S1_k=S1, S2_k=S2, tau=tau)
+    return _TimeLaw(t_k=t_k, s_k=rel, v_k=v, u_k=u, S1_k=S1, S2_k=S2, tau=tau,
+                    s_start=float(s_nodes[0]), s_end=float(s_nodes[-1]))
+
+
+@dataclass(frozen=True, eq=False)
+class _PiecewiseLaw:
+    """Rest-to-rest laws one after the other (the motion rests at corners of the path)."""
+
+    laws: tuple[_TimeLaw, ...]
+    t_offsets: np.ndarray  # (len(laws) + 1,) start time of each law; the last is the total duration
+
+    @property
+    def duration(self) -> float:
+        return float(self.t_offsets[-1])
+
+    @property
+    def t_star(self) -> float:
+        return float(sum(law.t_star for law in self.laws))
+
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        t = np.asarray(t, dtype=float)
+        if len(self.laws) == 1:
+            return self.laws[0].evaluate(t)
+        idx = np.clip(np.searchsorted(self.t_offsets, t, side='right') - 1, 0, len(self.laws) - 1)
+        out = [np.empty(t.shape) for _ in range(4)]
+        for i in np.unique(idx):
+            sel = idx == i
+            for arr, val in zip(out, self.laws[i].evaluate(t[sel] - self.t_offsets[i])):
+                arr[sel] = val
+        return out[0], out[1], out[2], out[3]
+
+
+def _build_piecewise_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -> _PiecewiseLaw:
+    """Split the optimal profile at its rests (x = 0) and smooth each rest-to-rest piece."""
+    rests = np.flatnonzero(x <= 0.0)
+    laws = [_build_law(s_nodes[i:j + 1], x[i:j + 1], smoothing) for i, j in zip(rests[:-1], rests[1:])]
+    offsets = np.concatenate([[0.0], np.cumsum([law.duration for law in laws])])
+    return _PiecewiseLaw(tuple(laws), offsets)
 
 
 @dataclass(frozen=True, eq=False)
@@ -250,6 +364,8 @@ class Trajectory:
         max_velocity, max_acceleration: limits used, shape (dof,); rad/s (m/s), rad/s^2 (m/s^2).
         topp_duration: time-optimal (bang-bang, non-smooth) duration along the path, s.
         min_duration: fastest smooth rest-to-rest duration this module builds, s (>= topp_duration).
+        rests: path parameters s where the motion comes to rest (0, corners of the path, 1).
+        rest_times: the times of those rests, s (first 0, last ``duration``).
     """
 
     path: Any
@@ -259,7 +375,9 @@ class Trajectory:
     max_acceleration: np.ndarray
     topp_duration: float
     min_duration: float
-    _law: _TimeLaw | None = field(repr=False)
+    rests: tuple[float, ...] = (0.0, 1.0)
+    rest_times: tuple[float, ...] = ()
+    _law: _PiecewiseLaw | None = field(repr=False, default=None)
     _law_scale: float = field(repr=False, default=1.0)
 
     @property
@@ -358,10 +476,31 @@ class Trajectory:
                 float(np.max(np.abs(ddq) / self.max_acceleration)))
 
 
+def _at_path_parameter(law: _PiecewiseLaw, t_grid: np.ndarray, s_grid: np.ndarray,
+                       targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """sdot and sddot when the (monotone) law passes the path parameters ``targets``."""
+    j = np.clip(np.searchsorted(s_grid, targets), 1, s_grid.size - 1)
+    s0, s1 = s_grid[j - 1], s_grid[j]
+    w = np.where(s1 > s0, (targets - s0) / np.where(s1 > s0, s1 - s0, 1.0), 0.0)
+    t = t_grid[j - 1] + w * (t_grid[j] - t_grid[j - 1])
+    for _ in range(4):  # Newton on s(t) = target
+        s, sd, _, _ = law.evaluate(t)
+        step = np.where(sd > 0, (s - targets) / np.where(sd > 0, sd, 1.0), 0.0)
+        t = np.clip(t - step, t_grid[j - 1], t_grid[j])
+    _, sd, sdd, _ = law.evaluate(t)
+    return sd, sdd
+
+
 def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration: Any = None,
-                      duration: float | None = None, *, grid_points: int = 1000,
+                      duration: float | None = None, *, grid_points: int = 100,
                       smoothing: float = 0.05, check_samples: int | None = None) -> Trajectory:
     """Fastest smooth rest-to-rest time law along ``path`` within joint limits.
+
+    The path is evaluated once, at ``grid_points + 1`` uniform values of s plus its breakpoints
+    (``path.breakpoints`` when present: both one-sided derivatives are read there; where q'
+    jumps, i.e. at a corner, the motion comes to rest). Between the nodes, q' and q'' are
+    interpolated (cubic Hermite with the exact q'' and q''' as slopes) for the time-optimal pass and
+    the dense limit check; the returned trajectory itself evaluates the path exactly.
 
     Args:
         path: object with ``evaluate(s) -> (q, q', q'', q''')`` (each (len(s), dof), w.r.t. s in
@@ -370,27 +509,16 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
         max_velocity: per-joint limit (dof,) or scalar, rad/s (m/s for prismatic); None: robot's.
         max_acceleration: per-joint limit (dof,) or scalar, rad/s^2 (m/s^2); None: robot's.
         duration: if given, the law is stretched uniformly to exactly this duration, s.
-        grid_points: number of s intervals of the time-optimal (TOPP) pass.
+        grid_points: number of uniform s intervals of the time-optimal (TOPP) pass.
         smoothing: acceleration-ramp time of the smoothing as a fraction of the TOPP duration,
             in (0, 1]; the smooth law lasts about ``(1 + smoothing) * topp_duration``.
-        check_samples: time samples of the dense limit check (default max(4000, 4 grid_points)).
+        check_samples: time samples of the dense limit check (default max(4000, 20 nodes)).
     Returns:
         A :class:`Trajectory`; zero velocity and acceleration at both ends, within the limits.
     Raises:
         LimitError: invalid limits (the message names the joint), duration shorter than the
             minimum (the message gives it), or a path that cannot be traversed.
     """
-    joint_names = [str(n) for n in getattr(path, 'joint_names', [])]
-    robot = getattr(path, 'robot', None)
-    q0 = np.asarray(path.evaluate(np.array([0.0]))[0], dtype=float)
-    dof = q0.shape[-1]
-    if len(joint_names) != dof:
-        joint_names = joint_names or [f'joint{i + 1}' for i in range(dof)]
-        if len(joint_names) != dof:
-            raise LimitError(f'path has {len(joint_names)} joint names but {dof} joints')
-    vmax = _limits(max_velocity, getattr(robot, 'max_velocity', None), dof, joint_names, 'max_velocity')
-    amax = _limits(max_acceleration, getattr(robot, 'max_acceleration', None), dof, joint_names,
-                   'max_acceleration')
     grid_points = int(grid_points)
     if grid_points < 2:
         raise LimitError(f'grid_points must be >= 2, got {grid_points}')
@@ -403,32 +531,43 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
             raise LimitError(f'duration must be a number, got {duration!r}') from err
         if not (math.isfinite(duration) and duration >= 0.0):
             raise LimitError(f'duration must be finite and >= 0, got {duration!r}')
+    ps = _sample_path(path, grid_points)
+    dof = ps.aR.shape[1]
+    joint_names = [str(n) for n in getattr(path, 'joint_names', [])]
+    if len(joint_names) != dof:
+        joint_names = joint_names or [f'joint{i + 1}' for i in range(dof)]
+        if len(joint_names) != dof:
+            raise LimitError(f'path has {len(joint_names)} joint names but {dof} joints')
+    robot = getattr(path, 'robot', None)
+    vmax = _limits(max_velocity, getattr(robot, 'max_velocity', None), dof, joint_names, 'max_velocity')
+    amax = _limits(max_acceleration, getattr(robot, 'max_acceleration', None), dof, joint_names,
+                   'max_acceleration')
 
-    s_grid = np.linspace(0.0, 1.0, grid_points + 1)
-    _, a, b, _ = path.evaluate(s_grid)
-    a = np.asarray(a, dtype=float)
-    b = np.asarray(b, dtype=float)
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
-        raise LimitError('path derivatives contain NaN or inf')
-    if float(np.max(np.abs(a))) == 0.0:
+    if float(max(np.abs(ps.aR).max(), np.abs(ps.aL).max())) == 0.0:
         # Stationary path: nothing moves; any duration (default 0) is feasible.
         T = 0.0 if duration is None else duration
         return Trajectory(path=path, joint_names=joint_names, duration=T, max_velocity=vmax,
-                          max_acceleration=amax, topp_duration=0.0, min_duration=0.0, _law=None)
+                          max_acceleration=amax, topp_duration=0.0, min_duration=0.0,
+                          rest_times=(0.0, float(T)))
 
-    x = _topp(a, b, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN))
-    law = _build_law(s_grid, x, float(smoothing))
-    t_star = law.t_star
+    x = _topp(ps, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN))
+    law = _build_piecewise_law(ps.s, x, float(smoothing))
 
     # Dense check of the smoothed law against the full limits; stretch time if needed.
-    m = int(check_samples) if check_samples is not None else max(4000, 4 * grid_points)
+    m = int(check_samples) if check_samples is not None else max(4000, 20 * ps.s.size)
     t_chk = np.linspace(0.0, law.duration, max(m, 10))
+    t_chk = np.union1d(t_chk, law.t_offsets)
     s, sd, sdd, _ = law.evaluate(t_chk)
-    _, q1, q2, _ = path.evaluate(s)
-    q1 = np.asarray(q1, dtype=float)
-    q2 = np.asarray(q2, dtype=float)
-    rv = float(np.max(np.abs(q1 * sd[:, None]) / vmax))
-    ra = float(np.max(np.abs(q1 * sdd[:, None] + q2 * (sd**2)[:, None]) / amax))
+    a, b = ps.interpolate(s)
+    rv = float(np.max(np.abs(a * sd[:, None]) / vmax))
+    ra = float(np.max(np.abs(a * sdd[:, None] + b * (sd**2)[:, None]) / amax))
+    # At breakpoints q'' (or q') may jump: check both one-sided values at the exact crossing time.
+    inner = np.flatnonzero((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1))
+    if inner.size:
+        sd_b, sdd_b = _at_path_parameter(law, t_chk, s, ps.s[inner])
+        for aa, bb in ((ps.aL[inner], ps.bL[inner]), (ps.aR[inner], ps.bR[inner])):
+            rv = max(rv, float(np.max(np.abs(aa * sd_b[:, None]) / vmax)))
+            ra = max(ra, float(np.max(np.abs(aa * sdd_b[:, None] + bb * (sd_b**2)[:, None]) / amax)))
     target = 1.0 - CHECK_MARGIN
     lam = max(1.0, rv / target, math.sqrt(ra / target))
     t_min = lam * law.duration
@@ -439,9 +578,12 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
             raise LimitError(
                 f'duration {duration:.6g} s is shorter than the minimum {t_min:.6g} s for these limits')
         T = duration
+    rests = (float(law.laws[0].s_start),) + tuple(float(w.s_end) for w in law.laws)
+    scale = float(T / law.duration)
+    rest_times = tuple(float(t) * scale for t in law.t_offsets[:-1]) + (float(T),)
     return Trajectory(path=path, joint_names=joint_names, duration=float(T), max_velocity=vmax,
-                      max_acceleration=amax, topp_duration=float(t_star), min_duration=float(t_min),
-                      _law=law, _law_scale=float(T / law.duration))
+                      max_acceleration=amax, topp_duration=law.t_star, min_duration=float(t_min),
+                      rests=rests, rest_times=rest_times, _law=law, _law_scale=scale)
 
 
-__all__ = ['Trajectory', 'time_parameterize']
+__all__ = ['CHECK_MARGIN', 'CORNER_TOLERANCE', 'TOPP_MARGIN', 'Trajectory', 'time_parameterize']

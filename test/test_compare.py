@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from geodesic_planner import chain_from_dh
-from geodesic_planner.compare import ee_profile, summarize
+from geodesic_planner.compare import ee_profile, main, summarize
 from geodesic_planner.transforms import line_slerp
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -154,17 +154,25 @@ def write(tmp_path: Path, text: str) -> Path:
     ('robot: planar_3r\nstart:\n  position: {x: 9.0, y: 0.0, z: 0.0}\ngoal_joints: [1, 1, 1]\n', ''),
     ('robot: planar_3r\nstart_joints: [0, 0.5, 0]\nbogus: 1\ngoal_joints: [1, 1, 1]\n', 'bogus'),
 ])
-def test_bad_requests_give_one_error_line(tmp_path, text, match):
-    res = run(str(write(tmp_path, text)), '--output', str(tmp_path / 'out'))
-    assert res.returncode == 1
-    lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith('ERROR: '), res.stderr
+def test_bad_requests_give_one_error_line(tmp_path, capsys, text, match):
+    code = main([str(write(tmp_path, text)), '--output', str(tmp_path / 'out')])
+    err = capsys.readouterr().err
+    assert code == 1
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('ERROR: '), err
     assert match in lines[0]
-    assert 'Traceback' not in res.stderr
     assert not (tmp_path / 'out' / 'comparison.json').exists()
 
 
-def test_bad_arguments_and_paths(tmp_path):
+def test_bad_request_subprocess_exit_code(tmp_path):
+    res = run(str(write(tmp_path, 'robot: planar_3r\nstart: [1, 2\n')), '--output', str(tmp_path / 'out'))
+    assert res.returncode == 1
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('ERROR: ') and 'YAML' in lines[0], res.stderr
+    assert 'Traceback' not in res.stderr
+
+
+def test_bad_arguments_and_paths(tmp_path, capsys):
     cases = [
         [str(tmp_path / 'missing.yaml'), '--output', str(tmp_path / 'o')],
         [str(PAPER_3R), '--output', str(tmp_path / 'o'), '--samples', '1'],
@@ -175,10 +183,11 @@ def test_bad_arguments_and_paths(tmp_path):
     blocker.write_text('x')
     cases.append([str(PAPER_3R), '--output', str(blocker), '--no-plots'])
     for argv in cases:
-        res = run(*argv)
-        assert res.returncode == 1, argv
-        lines = res.stderr.strip().splitlines()
-        assert len(lines) == 1 and lines[0].startswith('ERROR: '), (argv, res.stderr)
+        code = main(argv)
+        err = capsys.readouterr().err
+        assert code == 1, argv
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith('ERROR: '), (argv, err)
 
 
 # ------------------------------------------------------------------ ee_profile against closed forms

@@ -273,3 +273,125 @@ def test_path_with_a_joint_that_does_not_move_and_a_turning_point():
     # Independent optimum: out 0.5 rad and back, each a triangle/trapezoid at vmax 1, amax 2.
     t_half = 0.5 / 1.0 + 1.0 / 2.0
     assert 2 * t_half * (1 - 1e-6) <= traj.duration <= OPTIMALITY_FACTOR * 2 * t_half
+
+
+# ------------------------------------------------------------------ corners and breakpoints
+class CornerPath:
+    """Two straight joint-space segments meeting at s = 0.5 with a corner (q' jumps)."""
+
+    def __init__(self, d1, d2, vmax=1.0, amax=2.0):
+        self.d1, self.d2 = np.asarray(d1, float), np.asarray(d2, float)
+        dof = self.d1.size
+        self.joint_names = [f'j{i + 1}' for i in range(dof)]
+        self.robot = SimpleNamespace(max_velocity=np.full(dof, vmax), max_acceleration=np.full(dof, amax))
+        self.breakpoints = np.array([0.0, 0.5, 1.0])
+
+    def evaluate(self, s):
+        s = np.asarray(s, dtype=float)[:, None]
+        first = s < 0.5
+        q = np.where(first, 2 * s * self.d1, self.d1 + (2 * s - 1) * self.d2)
+        dq = np.where(first, 2 * self.d1, 2 * self.d2) * np.ones_like(s)
+        z = np.zeros_like(q)
+        return q, dq, z, z
+
+
+def line_time(length, vmax, amax):
+    return length / vmax + vmax / amax if length >= vmax**2 / amax else 2.0 * np.sqrt(length / amax)
+
+
+def test_corner_of_a_piecewise_path_is_a_rest():
+    path = CornerPath([0.8, 0.0], [0.0, 0.6])
+    traj = time_parameterize(path)
+    assert traj.rests == pytest.approx((0.0, 0.5, 1.0))
+    check_limits(traj)
+    assert len(traj.rest_times) == 3 and traj.rest_times[0] == 0.0 and traj.rest_times[2] == traj.duration
+    s, sd, sdd = traj.s_of_t(np.array([traj.rest_times[1]]))
+    assert s[0] == pytest.approx(0.5, abs=1e-12) and sd[0] == 0.0 and sdd[0] == 0.0
+    t = np.linspace(0.0, traj.duration, 100001)
+    _, dq, ddq = traj.at_time(t)
+    # Velocities are continuous through the corner (no jump at the change of direction).
+    assert np.max(np.abs(np.diff(dq, axis=0))) < 1e-3
+    # Each leg is a rest-to-rest straight move: oracle = two bang-bang times.
+    t_opt = line_time(0.8, 1.0, 2.0) + line_time(0.6, 1.0, 2.0)
+    assert traj.topp_duration == pytest.approx(t_opt, rel=0.01)
+    assert t_opt <= traj.duration <= OPTIMALITY_FACTOR * t_opt
+
+
+def test_smooth_breakpoint_is_not_a_rest():
+    # Same direction on both sides: a breakpoint without a corner.
+    path = CornerPath([0.4, 0.2], [0.4, 0.2])
+    traj = time_parameterize(path)
+    assert traj.rests == (0.0, 1.0)
+    t_opt = line_time(0.8, 1.0, 2.0)  # joint 1 moves 0.8 in one straight line
+    assert t_opt <= traj.duration <= OPTIMALITY_FACTOR * t_opt
+
+
+# ------------------------------------------------------------------ real arms (core planner)
+def _ur5e_line_path():
+    from geodesic_planner import GeodesicPlanner, load_robot
+    from geodesic_planner.transforms import so3_exp
+    robot = load_robot('ur5e')
+    q_a = np.asarray(robot.home, dtype=float) + 0.1
+    T_a = robot.fk(q_a)
+    T_b = T_a.copy()
+    T_b[:3, 3] += [0.1, -0.15, 0.05]
+    T_b[:3, :3] = T_a[:3, :3] @ so3_exp(np.array([0.3, 0.2, -0.1]))
+    return robot, GeodesicPlanner(robot), q_a, T_a, T_b
+
+
+@pytest.mark.parametrize('name', ['planar_3r', 'rrpp', 'ur5e', 'panda'])
+def test_geodesic_paths_of_the_presets_respect_limits_and_rest(name):
+    from geodesic_planner import GeodesicPlanner, load_robot
+    robot = load_robot(name)
+    q_a = np.asarray(robot.home, dtype=float)
+    if name == 'planar_3r':
+        q_a, q_b = np.array([0.258, 0.583, -0.317]), np.array([0.969, 0.380, -0.574])
+    else:
+        q_b = q_a + np.linspace(0.15, -0.1, robot.dof)
+    path = GeodesicPlanner(robot).plan(None, None, start_joints=q_a, goal_joints=q_b)
+    traj = path.timed()
+    assert traj.joint_names == robot.joint_names
+    np.testing.assert_array_equal(traj.max_velocity, robot.max_velocity)
+    rv, ra = check_limits(traj)
+    assert max(rv, ra) > 0.97
+    t, q, dq, ddq = traj.sample(0.002)
+    np.testing.assert_allclose(q[[0, -1]], [q_a, q_b], atol=1e-9)
+    np.testing.assert_array_equal(dq[[0, -1]], 0.0)
+    np.testing.assert_array_equal(ddq[[0, -1]], 0.0)
+    assert 1.0 <= traj.optimality_ratio <= OPTIMALITY_FACTOR
+    half = path.timed(np.asarray(robot.max_velocity) / 2, np.asarray(robot.max_acceleration) / 4)
+    assert half.duration == pytest.approx(2.0 * traj.duration, rel=0.02)  # time scaling by 2
+
+
+def test_geodesic_duration_close_to_independent_optimum_on_ur5e():
+    robot, planner, q_a, T_a, T_b = _ur5e_line_path()
+    path = planner.plan(T_a, T_b, start_joints=q_a)
+    traj = path.timed()
+    t_lp = lp_topp_duration(path, traj.max_velocity, traj.max_acceleration, n=300)
+    assert 0.99 <= traj.duration / t_lp <= OPTIMALITY_FACTOR
+    check_limits(traj)
+
+
+def test_piecewise_geodesic_with_a_corner_rests_there():
+    robot, planner, q_a, T_a, T_b = _ur5e_line_path()
+    T_mid = T_a.copy()
+    T_mid[:3, 3] += [0.1, 0.0, 0.0]  # A -> M -> B is a polyline with a corner at M
+    path = planner.plan_through([T_a, T_mid, T_b], start_joints=q_a)
+    traj = path.timed()
+    check_limits(traj)
+    assert len(traj.rests) == 3 and traj.rests[1] == pytest.approx(path.breakpoints[1])
+    t = np.linspace(0.0, traj.duration, 20001)
+    _, dq, _ = traj.at_time(t)
+    assert np.max(np.abs(np.diff(dq, axis=0))) < 0.01 * robot.max_velocity.max()
+
+
+def test_polynomial_baseline_knots_one_sided_accelerations():
+    """The paper's cubic polynomial is only C1: q'' jumps at its knots; limits hold on both sides."""
+    from geodesic_planner import load_robot
+    from geodesic_planner.baselines import polynomial_path
+    robot = load_robot('planar_3r')
+    q_a = np.array([0.2578, 0.5828, -0.3170])
+    T_a, T_b = robot.fk(q_a), robot.fk(np.array([0.9692, 0.3799, -0.5735]))
+    path = polynomial_path(robot, T_a, T_b, q_a)
+    traj = path.timed()
+    check_limits(traj, n=50001)
