@@ -406,3 +406,42 @@ def test_pair_trajectories_matches_latest_earlier_input():
     pairs = bag_cli.pair_trajectories(ins, outs)
     assert [(a.stamp_ns if a else None, b.stamp_ns if b else None) for a, b in pairs] == [
         (10, 15), (20, None), (30, 35)]
+
+
+# ---------------------------------------------------------------------------------- msg_examples
+EXAMPLES = Path(__file__).resolve().parents[1] / 'msg_examples'
+
+
+def _yaml_trajectory(path: Path):
+    data = yaml.safe_load(path.read_text())
+    pts = data['points']
+    t = np.array([p['time_from_start']['sec'] + p['time_from_start']['nanosec'] * 1e-9 for p in pts])
+    arrays = [np.array([p[k] for p in pts], dtype=float) for k in ('positions', 'velocities', 'accelerations')]
+    return data['joint_names'], t, *arrays
+
+
+def _fk_3r(q):
+    c = np.cumsum(q, axis=1)
+    return np.stack([np.cos(c).sum(1), np.sin(c).sum(1), c[:, 2]], axis=1)
+
+
+def test_yaml_examples_are_the_paper_trajectory_before_and_after_scaling():
+    names, t, q, dq, ddq = _yaml_trajectory(EXAMPLES / 'joint_trajectory.yaml')
+    names2, t2, q2, dq2, ddq2 = _yaml_trajectory(EXAMPLES / 'joint_trajectory_processed.yaml')
+    assert names == names2 == ['joint1', 'joint2', 'joint3']
+    assert np.all(np.diff(t) > 0) and t[0] == 0.0
+    assert_allclose(dq[[0, -1]], 0.0, atol=1e-9)
+    assert_allclose(ddq[[0, -1]], 0.0, atol=1e-9)
+    # paper example: tool on the straight line A -> B with phi linear along it (exact oracle)
+    a, b = np.array([2.5, 1.5, np.radians(30)]), np.array([1.5, 2.5, np.arctan2(0.7, 0.714)])
+    xyphi = _fk_3r(q)
+    lam = (xyphi[:, :2] - a[:2]) @ (b - a)[:2] / np.sum((b - a)[:2] ** 2)
+    assert_allclose(xyphi, a + lam[:, None] * (b - a), atol=1e-5)
+    assert_allclose(lam[[0, -1]], [0.0, 1.0], atol=1e-5)
+    # processed at f = 0.5: twice as long, point k at 0.5 k s is the original at 0.25 k s
+    assert t2[-1] == pytest.approx(2 * t[-1], abs=2e-9)
+    n = min(len(t), len(t2)) - 1
+    assert_allclose(t2[:n], 2 * t[:n], atol=1e-9)
+    assert_allclose(q2[:n], q[:n], atol=2e-9)
+    assert_allclose(dq2[:n], 0.5 * dq[:n], atol=2e-9)
+    assert_allclose(ddq2[:n], 0.25 * ddq[:n], atol=2e-9)
