@@ -464,3 +464,34 @@ def test_sigkill_then_repair_recovers_flushed_messages(start_node: Any, ros_node
     assert report.messages[INPUT] == 5 and report.messages[OUTPUT] == 5
     for out, rec in zip(outs, read_trajectories(bag, OUTPUT)):
         assert_array_equal(rec.positions, cv.joint_trajectory_to_arrays(out).positions)
+
+
+def test_concurrent_publishers_every_trajectory_recorded(start_node: Any, ros_node: Any, tmp_path: Path) -> None:
+    """4 publishers x 15 trajectories at once: 60 received, 60 published, 60 + 60 in the bag."""
+    import threading
+
+    p = Processor(start_node, ros_node, {'bag_path': str(tmp_path / 'bag'), 'sample_period': 0.1})
+    pubs = [p.pub] + [ros_node.create_publisher(JointTrajectory, INPUT, QOS) for _ in range(3)]
+    for pub in pubs:
+        wait_for_subscribers(pub, 1, DEADLINE, watch=p.watch)
+    goals = {(w, k): Q1 + np.array([0.01 * w, 0.001 * k, 0.0]) for w in range(4) for k in range(15)}
+
+    def work(w: int) -> None:
+        for k in range(15):
+            pubs[w].publish(known_trajectory(Q0, goals[(w, k)]))
+
+    threads = [threading.Thread(target=work, args=(w,)) for w in range(4)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    outs = p.wait_outputs(60)
+    log = p.stop()
+    assert 'received 60, published 60, rejected 0' in log
+    path = bag_dir(log)
+    counts = {t.name: t.count for t in bag_info(path).topics}
+    assert counts[INPUT] == 60 and counts[OUTPUT] == 60
+    ends = sorted(tuple(np.round(r.positions[-1], 12)) for r in read_trajectories(path, OUTPUT))
+    expected = sorted(tuple(np.round(min_jerk(np.array([T_END]), T_END, Q0, g)[0][0], 12)) for g in goals.values())
+    assert ends == expected
+    assert len(outs) == 60
