@@ -151,7 +151,7 @@ def solve_ik(
     position_weight: float = 1.0,
     orientation_weight: float = 1.0,
     tolerance: float | None = None,
-    restarts: int = 8,
+    restarts: int = 24,
     rng_seed: int = 0,
     raise_on_failure: bool = True,
 ) -> IKSolution:

@@ -220,24 +220,27 @@ class Chain:
             axis is given, before its motion), T (N, 4, 4) base->tool.
         """
         N = q.shape[0]
+        F = self._fixed[1:]                      # (dof, 4, 4): F_{i+1}
+        # M_i F_{i+1}, M_i a rotation about / translation along z: row operations on F_{i+1},
+        # for all joints at once.
+        MF = np.broadcast_to(F, (N, self.dof, 4, 4)).copy()
+        c = np.cos(q)[..., None]
+        s_ = np.sin(q)[..., None]
+        rot0 = c * F[:, 0] - s_ * F[:, 1]
+        rot1 = s_ * F[:, 0] + c * F[:, 1]
+        if self._all_revolute:
+            MF[:, :, 0] = rot0
+            MF[:, :, 1] = rot1
+        else:
+            rev = ~self._prismatic[:, None]
+            MF[:, :, 0] = np.where(rev, rot0, F[:, 0])
+            MF[:, :, 1] = np.where(rev, rot1, F[:, 1])
+            MF[:, :, 2] += np.where(rev, 0.0, q[..., None] * F[:, 3])
         Tj = np.empty((N, self.dof, 4, 4))
-        T = np.empty((N, 4, 4))
-        T[:] = self._fixed[0]
-        sq, cq = np.sin(q), np.cos(q)
-        MF = np.empty((N, 4, 4))
+        T = np.broadcast_to(self._fixed[0], (N, 4, 4))
         for i in range(self.dof):
             Tj[:, i] = T
-            F = self._fixed[i + 1]
-            # M_i F_{i+1} with M_i a rotation about / translation along z: row operations on F.
-            if self._prismatic[i]:
-                MF[:] = F
-                MF[:, 2] += q[:, i, None] * F[3]
-            else:
-                c, s_ = cq[:, i, None], sq[:, i, None]
-                MF[:, 0] = c * F[0] - s_ * F[1]
-                MF[:, 1] = s_ * F[0] + c * F[1]
-                MF[:, 2:] = F[2:]
-            T = T @ MF
+            T = T @ MF[:, i]
         return Tj, T
 
     def fk(self, q: np.ndarray) -> np.ndarray:
