@@ -27,7 +27,10 @@ def _figure(figsize: tuple[float, float]) -> Any:
 def _save(fig: Any, out_dir: str, name: str) -> str:
     path = os.path.join(out_dir, name)
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
+    try:
+        fig.savefig(path, dpi=DPI, pil_kwargs={'optimize': True})
+    except TypeError:  # very old matplotlib without pil_kwargs
+        fig.savefig(path, dpi=DPI)
     return path
 
 
@@ -37,6 +40,21 @@ def is_planar(profiles: dict[str, dict[str, np.ndarray]]) -> bool:
         if np.ptp(prof['p'][:, 2]) > 1e-9 or np.min(np.abs(prof['R'][:, 2, 2])) < 1.0 - 1e-9:
             return False
     return True
+
+
+def _tidy(ax: Any, arrays: list[np.ndarray]) -> None:
+    """No offset notation; a flat curve (round-off only) gets a +-5 % band instead of noise."""
+    ax.ticklabel_format(axis='y', useOffset=False)
+    vals = np.concatenate([np.ravel(a) for a in arrays])
+    vals = vals[np.isfinite(vals)]
+    if vals.size == 0:
+        return
+    lo, hi = float(vals.min()), float(vals.max())
+    mag = max(abs(lo), abs(hi))
+    if hi - lo <= 1e-4 * mag + 1e-12:
+        centre = 0.5 * (lo + hi)
+        pad = max(0.05 * abs(centre), 1e-6)
+        ax.set_ylim(centre - pad, centre + pad)
 
 
 def _style(name: str) -> dict[str, Any]:
@@ -106,8 +124,11 @@ def _derivative_norms(profiles: dict[str, Any], out_dir: str, title: str, kind: 
         name = 'ee_orientation_derivatives.png'
     for i, (key, label) in enumerate(keys):
         ax = fig.add_subplot(3, 1, i + 1)
+        series = []
         for meth, prof in profiles.items():
-            ax.plot(prof['s'], norm(prof[key]), label=f'{meth} method', **_style(meth))
+            series.append(norm(prof[key]))
+            ax.plot(prof['s'], series[-1], label=f'{meth} method', **_style(meth))
+        _tidy(ax, series)
         ax.set_ylabel(label, fontsize=8)
         ax.grid(alpha=0.3)
         if i == 0:
@@ -155,6 +176,7 @@ def _joints(profiles: dict[str, Any], out_dir: str, title: str) -> str:
     colors = ['C0', 'C1', 'C2', 'C3', 'C4', 'C5', 'C6', 'C7']
     for i, (key, label) in enumerate(labels):
         ax = fig.add_subplot(1, 4, i + 1)
+        _tidy(ax, [prof[key] for prof in profiles.values()])
         for meth, prof in profiles.items():
             arr = prof[key]
             for j in range(arr.shape[1]):
