@@ -512,13 +512,17 @@ class GeodesicPlannerNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Console script ``geodesic_planner_node``: spin until SIGINT/SIGTERM; 0 on a clean exit,
-    1 when the parameters or the robot model are invalid at start."""
+    """Console script ``geodesic_planner_node``: spin until SIGINT/SIGTERM.
+
+    Returns:
+        0 after a signal (also one that arrives while starting), 1 when the parameters or the
+        robot model are invalid at start (one error line, no traceback).
+    """
     rclpy.init(args=args)
     node = None
     try:
-        node = GeodesicPlannerNode()
         executor = MultiThreadedExecutor(num_threads=4)
+        node = GeodesicPlannerNode()
         executor.add_node(node)
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -526,6 +530,10 @@ def main(args: list[str] | None = None) -> int:
     except (ConfigError, ParameterException) as err:
         rclpy.logging.get_logger(NODE_NAME).error(f'cannot start: {err}')
         return 1
+    except Exception:
+        if rclpy.ok():
+            raise
+        # SIGINT/SIGTERM shut the context down while entities were being created: clean exit.
     finally:
         if node is not None:
             node.destroy_node()

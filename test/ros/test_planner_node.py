@@ -663,18 +663,19 @@ def test_joint_names_override_at_runtime(planar: PlannerUnderTest) -> None:
 
 # --------------------------------------------------------------------------- process
 
-def test_sigint_exits_zero(start_node: Any, helper: Any) -> None:
-    proc = start_node('geodesic_planner_node', '-r', '__ns:=/sigint',
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_signal_exits_zero(start_node: Any, helper: Any, sig: signal.Signals) -> None:
+    proc = start_node('geodesic_planner_node', '-r', f'__ns:=/{sig.name.lower()}',
                       params={'robot': 'planar_3r'})
-    client = helper.create_client(GetPlan, '/sigint/geodesic_planner/plan')
+    client = helper.create_client(GetPlan, f'/{sig.name.lower()}/geodesic_planner/plan')
     try:
         wait_for_service(client, DEADLINE, watch=[proc])
     finally:
         helper.destroy_client(client)
-    rc = proc.stop(signal.SIGINT)
+    rc = proc.stop(sig)
     out = proc.log_text()
     assert rc == 0, out
-    assert proc.signals_sent == [signal.SIGINT]          # no escalation was needed
+    assert proc.signals_sent == [sig]                    # no escalation was needed
     assert 'Traceback' not in out
 
 
