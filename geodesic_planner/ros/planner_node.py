@@ -33,6 +33,8 @@ configuration (robot, planner, limits) is an immutable :class:`PlannerConfig` th
 reads once at its start; a parameter change builds a new one (or rejects it with a reason).
 Each plan runs in a worker thread and the service waits at most ``plan_timeout`` s for it; a plan
 that is late is abandoned (its result is discarded, nothing is published) and the request fails.
+A lock keeps the next plan from running beside an abandoned one still in progress (that request
+fails as "planner busy" after at most ``plan_timeout`` s).
 """
 from __future__ import annotations
 
@@ -377,6 +379,10 @@ class GeodesicPlannerNode(Node):
         self._state: tuple[np.ndarray, tuple[str, ...]] | None = None
         self._last_warn: dict[str, float] = {}
         self._abandoned = 0
+        # Held by the worker computing a plan. Normally uncontended (plans are serialised by
+        # the service's callback group); it keeps a new plan from running beside an abandoned
+        # (timed-out) one that may still be using the same planner object.
+        self._planner_lock = threading.Lock()
 
         self._plan_group = MutuallyExclusiveCallbackGroup()
         self._state_group = MutuallyExclusiveCallbackGroup()
@@ -479,7 +485,13 @@ class GeodesicPlannerNode(Node):
 
         def work() -> None:
             try:
-                box['result'] = compute_plan(config, request, current_q, stamp)
+                if not self._planner_lock.acquire(timeout=config.plan_timeout):
+                    raise RequestError('planner busy: an earlier request that timed out is '
+                                       'still computing')
+                try:
+                    box['result'] = compute_plan(config, request, current_q, stamp)
+                finally:
+                    self._planner_lock.release()
             except BaseException as err:  # noqa: BLE001 - handed to the service callback
                 box['error'] = err
             finally:
