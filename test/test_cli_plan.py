@@ -191,6 +191,7 @@ FAILURES = {
     'malformed_yaml': ('robot: [planar_3r\nstart: {position: {x: 1\n', 'malformed YAML'),
     'missing_file': (None, 'cannot read request'),
     'samples': ('samples', '--samples must be at least 2'),
+    'bad_urdf': ('bad_urdf', 'URDF: not valid XML'),
 }
 #: Run as real subprocesses of the console script (the rest in-process through plan_main, the
 #: same code path, to keep the suite fast on 2 cores).
@@ -203,6 +204,9 @@ def write_case(d, name):
         return ['does_not_exist.yaml']
     if content == 'samples':
         return [os.path.join(EXAMPLES, 'paper_3r.yaml'), '--samples', '1']
+    if content == 'bad_urdf':
+        (d / 'broken.urdf').write_text('<robot name="broken"><link name="a"></robot>')
+        content = {'robot': 'broken.urdf', 'start_joints': [0.0], 'goal_joints': [0.1]}
     (d / f'{name}.yaml').write_text(content if isinstance(content, str) else yaml.safe_dump(content))
     return [f'{name}.yaml']
 

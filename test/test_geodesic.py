@@ -432,3 +432,16 @@ def test_evaluate_rejects_bad_s(s, match, rrpp_path):
     _, path = rrpp_path
     with pytest.raises(RequestError, match=match):
         path.evaluate(np.array(s))
+
+
+def test_evaluate_accepts_unsorted_and_scalar_s(rrpp_path):
+    _, path = rrpp_path
+    s = np.linspace(0, 1, 21)
+    perm = np.random.default_rng(3).permutation(21)
+    ref = path.evaluate(s)
+    got = path.evaluate(s[perm])
+    for a, b in zip(got, ref):
+        assert_allclose(a, b[perm], atol=0)
+    one = path.evaluate(0.5)
+    assert all(a.shape == (1, 4) for a in one)
+    assert_allclose(one[0][0], path.evaluate(np.array([0.5]))[0][0], atol=0)

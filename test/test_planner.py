@@ -216,3 +216,29 @@ def test_tool_deviation_shrinks_linearly_with_epsilon():
         dev.append(U.tool_deviation(U.panda_fk_batch, path.evaluate(s)[0], T_a, T_b, s)[0])
     assert dev[0] > dev[1] > dev[2] > 0
     assert 5 < dev[0] / dev[1] < 20 and 5 < dev[1] / dev[2] < 20, dev
+
+
+# ---------------------------------------------------------------------- singular ends, threads
+def test_singular_start_configuration_is_reported():
+    """UR5e with q5 = 0: wrist joints 4 and 6 aligned, J has rank 5, so the paper metric is
+    singular there; the error names the metric, the robot and where."""
+    robot = load_robot('ur5e')
+    q_a = np.array([0.1, -1.2, 1.3, -1.5, 0.0, 0.4])
+    from geodesic_planner.errors import SingularMetricError
+    with pytest.raises(SingularMetricError, match=r"metric paper .* is singular for robot 'ur5e' at the start q=\[0\.1, -1\.2, 1\.3, -1\.5, 0\.0, 0\.4\]"):
+        GeodesicPlanner(robot).plan_joints(q_a, q_a + 0.2)
+
+
+def test_shared_planner_across_threads_gives_sequential_results():
+    """One planner used by several threads at once (as the ROS node does) plans the same paths."""
+    from concurrent.futures import ThreadPoolExecutor
+    robot = load_robot('ur5e')
+    planner = GeodesicPlanner(robot)
+    rng = np.random.default_rng(71)
+    moves = [(robot.home + rng.uniform(-0.3, 0.3, 6), robot.home + rng.uniform(-0.3, 0.3, 6)) for _ in range(6)]
+    s = np.linspace(0, 1, 31)
+    sequential = [np.array(planner.plan_joints(a, b).evaluate(s)) for a, b in moves]
+    with ThreadPoolExecutor(4) as pool:
+        parallel = list(pool.map(lambda m: np.array(planner.plan_joints(*m).evaluate(s)), moves * 3))
+    for k, got in enumerate(parallel):
+        assert_allclose(got, sequential[k % len(moves)], atol=0, rtol=0)
