@@ -92,6 +92,15 @@ def test_axis_is_normalised_and_sign_matters():
     assert_allclose(r3.fk(q), r1.fk(-q), atol=1e-15)
 
 
+def test_continuous_joint_without_limit_element():
+    xml = ('<robot name="r"><link name="a"/><link name="b"/>'
+           '<joint name="j" type="continuous"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/></joint></robot>')
+    robot = chain_from_urdf(xml)
+    assert robot.lower[0] == -np.inf and robot.upper[0] == np.inf
+    assert robot.max_velocity[0] > 0 and robot.max_acceleration[0] > 0
+    assert_allclose(robot.fk(np.array([0.3])), U.rz(0.3), atol=1e-15)
+
+
 def test_default_axis_is_x():
     """URDF spec: a joint without <axis> rotates about x of its frame."""
     xml = ('<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
