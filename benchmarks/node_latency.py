@@ -213,6 +213,25 @@ def measure(bench: Bench, robot: str, n_requests: int, warmup: int, per_client: 
             print(f'warning: {robot} node exited with {rc}', file=sys.stderr)
 
 
+def breakdown(robot: str, n: int) -> dict[str, float]:
+    """Median stage times (ms) of the node's compute_plan in this process, no ROS transport."""
+    from geodesic_planner.ros import planner_node as pn
+
+    values = {name: spec[0] for name, spec in pn.PARAMETERS.items()}
+    values['robot'] = robot
+    config = pn.build_config(values)
+    reqs = requests_for(robot, n + 3, seed=2)
+    stages: dict[str, list[float]] = {}
+    for i, req in enumerate(reqs):
+        t0 = time.perf_counter()
+        res = pn.compute_plan(config, req, None)
+        total = (time.perf_counter() - t0) * 1e3
+        if i >= 3:
+            for k, v in {**res.stage_ms, 'total': total}.items():
+                stages.setdefault(k, []).append(v)
+    return {k: float(np.median(v)) for k, v in stages.items()}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--requests', type=int, default=100, help='sequential requests per robot')
@@ -234,9 +253,12 @@ def main(argv: list[str] | None = None) -> int:
                                        Path(tmp)))
     finally:
         bench.close()
+    stages = {robot: breakdown(robot, min(args.requests, 30)) for robot in args.robots}
+    load = os.getloadavg()
     print(f'# planner node latency ({platform.processor() or platform.machine()}, '
-          f'{os.cpu_count()} cores, Python {platform.python_version()}; '
-          f'{args.requests} sequential requests after {args.warmup} warm-up)')
+          f'{os.cpu_count()} cores, Python {platform.python_version()}, load average '
+          f'{load[0]:.1f} / {load[1]:.1f}; {args.requests} sequential requests after '
+          f'{args.warmup} warm-up)')
     print('| robot | points | request->trajectory p50 / p90 / max (ms) | request->response p50 / p90 (ms) '
           '| 4 clients: plans/s (requests, failures) |')
     print('|---|---|---|---|---|')
@@ -245,6 +267,13 @@ def main(argv: list[str] | None = None) -> int:
         q = np.percentile(r.resp_ms, [50, 90])
         print(f'| {r.robot} | {r.points} | {p[0]:.1f} / {p[1]:.1f} / {r.traj_ms.max():.1f} | '
               f'{q[0]:.1f} / {q[1]:.1f} | {r.rate:.1f} ({r.rate_requests}, {r.rate_failures}) |')
+    print()
+    print('# where the time goes: node compute_plan in-process (median ms, no ROS transport)')
+    print('| robot | plan (library) | timing (timed + sample) | messages | total |')
+    print('|---|---|---|---|---|')
+    for robot, st in stages.items():
+        print(f"| {robot} | {st['plan']:.1f} | {st['timing']:.1f} | {st['messages']:.1f} | "
+              f"{st['total']:.1f} |")
     return 0
 
 

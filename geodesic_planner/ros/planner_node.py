@@ -157,6 +157,7 @@ class PlanResult:
     duration: float
     solver_iterations: int
     solver_ms: float
+    stage_ms: dict[str, float]     # 'plan' (library), 'timing' (timed + sample), 'messages'
 
 
 # --------------------------------------------------------------------------- parameters
@@ -324,7 +325,9 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
     kwargs: dict[str, Any] = {'start_joints': start_joints}
     if tolerance is not None:
         kwargs['tolerance'] = tolerance
+    t0 = time.perf_counter()
     path = config.planner.plan(start, goal, **kwargs)
+    t1 = time.perf_counter()
     f = config.velocity_scaling
     trajectory = path.timed(max_velocity=config.max_velocity * f,
                             max_acceleration=config.max_acceleration * f * f)
@@ -334,6 +337,7 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
             f'the trajectory would have {points} points ({trajectory.duration:.3g} s every '
             f'{config.sample_period:g} s), more than {MAX_POINTS}: increase sample_period')
     t, q, dq, ddq = trajectory.sample(config.sample_period)
+    t2 = time.perf_counter()
     msg = cv.arrays_to_joint_trajectory(list(config.joint_names), t, q, dq, ddq)
     problems = cv.validate_joint_trajectory(msg)
     if problems:
@@ -341,9 +345,11 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
     tool = config.robot.fk(q)
     path_msg = cv.poses_to_path(tool, config.frame_id, stamp)
     markers = cv.path_markers(tool, config.frame_id)
+    t3 = time.perf_counter()
     solver = path.solver
+    stages = {'plan': (t1 - t0) * 1e3, 'timing': (t2 - t1) * 1e3, 'messages': (t3 - t2) * 1e3}
     return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
-                      int(solver.iterations), float(solver.time_ms))
+                      int(solver.iterations), float(solver.time_ms), stages)
 
 
 # --------------------------------------------------------------------------- node
@@ -519,7 +525,8 @@ class GeodesicPlannerNode(Node):
         total_ms = (time.perf_counter() - t0) * 1e3
         self.get_logger().info(
             f'plan: {result.points} points, {result.duration:.2f} s, solver '
-            f'{result.solver_iterations} it, {result.solver_ms:.1f} ms (request {total_ms:.1f} ms)')
+            f'{result.solver_iterations} it, {result.solver_ms:.1f} ms (request {total_ms:.1f} ms: '
+            + ', '.join(f'{k} {v:.1f}' for k, v in result.stage_ms.items()) + ')')
         return response
 
 
