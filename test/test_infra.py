@@ -603,3 +603,20 @@ def test_demo_end_to_end(tmp_path: Path) -> None:
     from geodesic_planner.bag import read_trajectories
     topics = sorted({r.topic for r in read_trajectories(out / 'bag')})
     assert topics == ['/geodesic_planner/joint_trajectory', '/trajectory_processor/joint_trajectory']
+
+
+def test_running_venv_matches_the_lock() -> None:
+    """The suite runs on exactly the pinned versions (scripts/setup_env.sh installed lock.txt)."""
+    from importlib import metadata
+
+    wrong = {}
+    for line in (ROOT / 'requirements' / 'lock.txt').read_text().splitlines():
+        if line.strip() and not line.startswith('#'):
+            name, version = line.strip().split('==')
+            try:
+                have = metadata.version(name)
+            except metadata.PackageNotFoundError:
+                have = None
+            if have != version:
+                wrong[name] = (version, have)
+    assert not wrong, f'pinned vs installed: {wrong}; run bash scripts/setup_env.sh'
