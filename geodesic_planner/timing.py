@@ -49,6 +49,11 @@ CHECK_MARGIN = 1e-4
 _X_CAP = 1e12
 
 
+def _clip(x: Any, lo: Any, hi: Any) -> np.ndarray:
+    """np.clip without its per-call overhead (it dominates on the small arrays used here)."""
+    return np.minimum(np.maximum(x, lo), hi)
+
+
 class PathLike(Protocol):
     """What :func:`time_parameterize` needs from a path."""
 
@@ -98,7 +103,7 @@ class _PathSamples:
     def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First and second derivatives at ``s`` by cubic Hermite interpolation on each step."""
         n = self.s.size - 1
-        k = np.clip(np.searchsorted(self.s, s, side='right') - 1, 0, n - 1)
+        k = _clip(np.searchsorted(self.s, s, side='right') - 1, 0, n - 1)
         h = (self.s[k + 1] - self.s[k])[:, None]
         x = ((s - self.s[k])[:, None]) / h
         x2, x3 = x * x, x * x * x
@@ -112,22 +117,29 @@ class _PathSamples:
 _LEFT_EPS = 1e-12
 #: Relative jump of q' at a breakpoint above which the path has a corner (the law rests there).
 CORNER_TOLERANCE = 1e-5
+#: Fewest TOPP steps on a piece between two breakpoints.
+MIN_PIECE_STEPS = 8
 
 
 def _sample_path(path: Any, grid_points: int) -> _PathSamples:
     """Evaluate the path once: a uniform grid plus its breakpoints (``path.breakpoints``, optional)."""
-    uniform = np.linspace(0.0, 1.0, grid_points + 1)
     raw = getattr(path, 'breakpoints', None)
     interior = np.zeros(0)
     if raw is not None:
         arr = np.asarray(raw, dtype=float).reshape(-1)
         arr = arr[np.isfinite(arr)]
         interior = np.unique(arr[(arr > 1e-9) & (arr < 1.0 - 1e-9)])
+        if interior.size > 1:  # merge breakpoints closer than 1e-9
+            interior = interior[np.concatenate([[True], np.diff(interior) > 1e-9])]
     if interior.size:
-        near = np.min(np.abs(uniform[:, None] - interior[None, :]), axis=1) < 1e-9
-        nodes = np.sort(np.concatenate([uniform[~near], interior]))
+        # Each piece between breakpoints: uniform steps of about 1 / grid_points, at least
+        # MIN_PIECE_STEPS of them (a piece may start and end at rest).
+        ends = np.concatenate([[0.0], interior, [1.0]])
+        parts = [np.linspace(a, b, max(MIN_PIECE_STEPS, int(math.ceil((b - a) * grid_points))) + 1)[:-1]
+                 for a, b in zip(ends[:-1], ends[1:])]
+        nodes = np.concatenate(parts + [np.ones(1)])
     else:
-        nodes = uniform
+        nodes = np.linspace(0.0, 1.0, grid_points + 1)
     s_eval = np.concatenate([nodes, interior - _LEFT_EPS])
     _, a, b, c = (np.asarray(v, dtype=float) for v in path.evaluate(s_eval))
     if a.ndim != 2 or a.shape[0] != s_eval.size:
@@ -256,8 +268,8 @@ class _TimeLaw:
         T = self.t_star
         n = self.u_k.size
         span = float(self.s_k[-1])
-        tc = np.clip(t, 0.0, T)
-        k = np.clip(np.searchsorted(self.t_k, tc, side='right') - 1, 0, n - 1)
+        tc = _clip(t, 0.0, T)
+        k = _clip(np.searchsorted(self.t_k, tc, side='right') - 1, 0, n - 1)
         r = tc - self.t_k[k]
         s0, v0, u = self.s_k[k], self.v_k[k], self.u_k[k]
         s = s0 + v0 * r + u * r**2 / 2.0
@@ -279,7 +291,7 @@ class _TimeLaw:
 
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """s, sdot, sddot, sdddot at local times t (clipped to [0, duration])."""
-        t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        t = _clip(np.asarray(t, dtype=float), 0.0, self.duration)
         tau = self.tau
         c = t - tau
         sp, vp, S1p, S2p = self._star(c + tau)
@@ -290,7 +302,7 @@ class _TimeLaw:
         sd = np.maximum((S1p - 2.0 * S10 + S1m) * inv, 0.0)
         sdd = (sp - 2.0 * s0 + sm) * inv
         sddd = (vp - 2.0 * v0 + vm) * inv
-        s = self.s_start + np.clip(s, 0.0, float(self.s_k[-1]))
+        s = self.s_start + _clip(s, 0.0, float(self.s_k[-1]))
         # Exact ends: at rest, at s_start and s_end.
         end = t >= self.duration
         start = t <= 0.0
@@ -336,7 +348,7 @@ class _PiecewiseLaw:
         t = np.asarray(t, dtype=float)
         if len(self.laws) == 1:
             return self.laws[0].evaluate(t)
-        idx = np.clip(np.searchsorted(self.t_offsets, t, side='right') - 1, 0, len(self.laws) - 1)
+        idx = _clip(np.searchsorted(self.t_offsets, t, side='right') - 1, 0, len(self.laws) - 1)
         out = [np.empty(t.shape) for _ in range(4)]
         for i in np.unique(idx):
             sel = idx == i
@@ -407,7 +419,7 @@ class Trajectory:
             z = np.zeros_like(t)
             return one, z, z, z
         lam = self._law_scale
-        tl = np.where(t >= self.duration, self._law.duration, np.clip(t, 0.0, self.duration) / lam)
+        tl = np.where(t >= self.duration, self._law.duration, _clip(t, 0.0, self.duration) / lam)
         s, sd, sdd, sddd = self._law.evaluate(tl)
         return s, sd / lam, sdd / lam**2, sddd / lam**3
 
@@ -479,14 +491,14 @@ class Trajectory:
 def _at_path_parameter(law: _PiecewiseLaw, t_grid: np.ndarray, s_grid: np.ndarray,
                        targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """sdot and sddot when the (monotone) law passes the path parameters ``targets``."""
-    j = np.clip(np.searchsorted(s_grid, targets), 1, s_grid.size - 1)
+    j = _clip(np.searchsorted(s_grid, targets), 1, s_grid.size - 1)
     s0, s1 = s_grid[j - 1], s_grid[j]
     w = np.where(s1 > s0, (targets - s0) / np.where(s1 > s0, s1 - s0, 1.0), 0.0)
     t = t_grid[j - 1] + w * (t_grid[j] - t_grid[j - 1])
     for _ in range(4):  # Newton on s(t) = target
         s, sd, _, _ = law.evaluate(t)
         step = np.where(sd > 0, (s - targets) / np.where(sd > 0, sd, 1.0), 0.0)
-        t = np.clip(t - step, t_grid[j - 1], t_grid[j])
+        t = _clip(t - step, t_grid[j - 1], t_grid[j])
     _, sd, sdd, _ = law.evaluate(t)
     return sd, sdd
 
@@ -562,7 +574,8 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
     rv = float(np.max(np.abs(a * sd[:, None]) / vmax))
     ra = float(np.max(np.abs(a * sdd[:, None] + b * (sd**2)[:, None]) / amax))
     # At breakpoints q'' (or q') may jump: check both one-sided values at the exact crossing time.
-    inner = np.flatnonzero((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1))
+    # (Rests at corners need no check: sdot = sddot = 0 there.)
+    inner = np.flatnonzero(((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1)) & ~ps.stop)
     if inner.size:
         sd_b, sdd_b = _at_path_parameter(law, t_chk, s, ps.s[inner])
         for aa, bb in ((ps.aL[inner], ps.bL[inner]), (ps.aR[inner], ps.bR[inner])):

@@ -395,3 +395,39 @@ def test_polynomial_baseline_knots_one_sided_accelerations():
     path = polynomial_path(robot, T_a, T_b, q_a)
     traj = path.timed()
     check_limits(traj, n=50001)
+
+
+class ZigZagPath:
+    """Straight joint-space legs between given breakpoints, alternating direction (corners)."""
+
+    def __init__(self, breaks):
+        self.breakpoints = np.asarray(breaks, dtype=float)
+        self.joint_names = ['j1', 'j2']
+        self.robot = SimpleNamespace(max_velocity=np.array([1.0, 1.0]), max_acceleration=np.array([2.0, 2.0]))
+        legs = np.diff(self.breakpoints)
+        dirs = np.array([[1.0, 0.5] if i % 2 == 0 else [0.5, -1.0] for i in range(legs.size)])
+        self.slopes = dirs                       # dq/ds on each leg
+        self.starts = np.concatenate([[[0.0, 0.0]], np.cumsum(dirs * legs[:, None], axis=0)])[:-1]
+
+    def evaluate(self, s):
+        s = np.asarray(s, dtype=float)
+        i = np.clip(np.searchsorted(self.breakpoints, s, side='right') - 1, 0, self.slopes.shape[0] - 1)
+        q = self.starts[i] + (s - self.breakpoints[i])[:, None] * self.slopes[i]
+        z = np.zeros_like(q)
+        return q, self.slopes[i].copy(), z, z
+
+
+def test_many_short_pieces_rest_at_every_corner():
+    breaks = np.concatenate([[0.0, 0.003, 0.0045], np.linspace(0.01, 1.0, 25)])  # pieces far below 1/100
+    path = ZigZagPath(breaks)
+    traj = time_parameterize(path)
+    assert len(traj.rests) == breaks.size
+    np.testing.assert_allclose(traj.rests, breaks, atol=1e-12)
+    check_limits(traj, n=100001)
+    for t_rest, s_rest in zip(traj.rest_times, traj.rests):
+        s, sd, sdd = traj.s_of_t(np.array([t_rest]))
+        assert s[0] == pytest.approx(s_rest, abs=1e-12) and sd[0] == 0.0 and sdd[0] == 0.0
+    # Oracle: every leg is a rest-to-rest straight move of its own.
+    legs = np.diff(breaks) * np.abs(path.slopes).max(axis=1)
+    t_opt = sum(line_time(length, 1.0, 2.0) for length in legs)
+    assert t_opt <= traj.duration <= OPTIMALITY_FACTOR * t_opt
