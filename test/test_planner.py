@@ -242,3 +242,26 @@ def test_shared_planner_across_threads_gives_sequential_results():
         parallel = list(pool.map(lambda m: np.array(planner.plan_joints(*m).evaluate(s)), moves * 3))
     for k, got in enumerate(parallel):
         assert_allclose(got, sequential[k % len(moves)], atol=0, rtol=0)
+
+
+@pytest.mark.xfail(strict=True, raises=GeodesicPlannerError, reason=(
+    'BUG: poses-only plan on a URDF arm whose default seed (home = zeros) is singular: the start IK '
+    'lands on a nearly singular branch (q3 = 0.118, smallest singular value 0.017) from which the '
+    'line to the goal crosses the elbow singularity; the goal IK restarts on another branch '
+    '(|dq| up to 2.6 rad) and solve_bvp exhausts max_nodes -> BVPError for an ordinary move'))
+def test_urdf_arm_with_singular_home_plans_ordinary_move_from_poses():
+    """UR5e kinematics as a URDF with a base offset and a tool; the move is 0.10 m and 27 deg
+    (the ur5e preset, whose home is a regular configuration, plans the same move fine)."""
+    base = U.xyz_rpy((0.3, 0.1, 0.2), (0.1, 0.2, 0.3))
+    tool = U.xyz_rpy((0.0, 0.02, 0.1), (0.3, 0.0, 0.0))
+    from geodesic_planner.urdf import chain_from_urdf
+    urdf = chain_from_urdf(U.dh_to_urdf('ur5e_urdf', U.UR5E_DH, ['revolute'] * 6, base=base, tool=tool,
+                                        lower=[-6.28] * 6, upper=[6.28] * 6))
+    fkb = lambda qs: U.dh_fk_batched(U.UR5E_DH, ['revolute'] * 6, qs, base=base, tool=tool)  # noqa: E731
+    q_a = np.array([0.3737, -1.8888, 1.1868, -1.61, -1.8254, 0.3261])
+    q_b = np.array([0.4405, -1.5781, 0.7632, -1.4363, -1.9549, 0.8495])
+    T_a, T_b = fkb(np.stack([q_a, q_b]))
+    path = GeodesicPlanner(urdf).plan(T_a, T_b)
+    s = np.linspace(0, 1, 101)
+    dp, dr = U.tool_deviation(fkb, path.evaluate(s)[0], T_a, T_b, s)
+    assert dp < 1e-6 and dr < 1e-5
