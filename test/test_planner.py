@@ -225,7 +225,8 @@ def test_singular_start_configuration_is_reported():
     robot = load_robot('ur5e')
     q_a = np.array([0.1, -1.2, 1.3, -1.5, 0.0, 0.4])
     from geodesic_planner.errors import SingularMetricError
-    with pytest.raises(SingularMetricError, match=r"metric paper .* is singular for robot 'ur5e' at the start q=\[0\.1, -1\.2, 1\.3, -1\.5, 0\.0, 0\.4\]"):
+    match = r"metric paper .* is singular for robot 'ur5e' at the start q=\[0\.1, -1\.2, 1\.3, -1\.5, 0\.0, 0\.4\]"
+    with pytest.raises(SingularMetricError, match=match):
         GeodesicPlanner(robot).plan_joints(q_a, q_a + 0.2)
 
 
