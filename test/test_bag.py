@@ -445,3 +445,29 @@ def test_yaml_examples_are_the_paper_trajectory_before_and_after_scaling():
     assert_allclose(q2[:n], q[:n], atol=2e-9)
     assert_allclose(dq2[:n], 0.5 * dq[:n], atol=2e-9)
     assert_allclose(ddq2[:n], 0.25 * ddq[:n], atol=2e-9)
+
+
+def test_independent_mcap_reader_accepts_recorded_and_repaired_bags(tmp_path, ts):
+    """The reference MCAP library (what Foxglove implements) reads our files, CRCs checked."""
+    mcap_reader = pytest.importorskip('mcap.reader')
+    with BagRecorder(tmp_path / 'ok', topics={JS: JOINT_STATE}) as rec:
+        for i in range(5):
+            rec.write(JS, 100 + i, to_cdr(joint_state(i), JOINT_STATE, ts))
+    live = BagRecorder(tmp_path / 'live', topics={JS: JOINT_STATE}, flush_period=None).open()
+    for i in range(5):
+        live.write(JS, 100 + i, to_cdr(joint_state(i), JOINT_STATE, ts))
+    live.flush()
+    _copy_as_killed(live.path, tmp_path / 'killed')
+    live.close()
+    repair(tmp_path / 'killed')
+    for bag in ('ok', 'killed'):
+        (path,) = (tmp_path / bag).glob('*.mcap')
+        with path.open('rb') as fh:
+            reader = mcap_reader.make_reader(fh, validate_crcs=True)
+            assert reader.get_header().profile == 'ros2'
+            summary = reader.get_summary()
+            assert summary.statistics.message_count == 5
+            (channel,) = summary.channels.values()
+            assert channel.topic == JS and 'offered_qos_profiles' in channel.metadata
+            assert summary.schemas[channel.schema_id].name == JOINT_STATE
+            assert [m.log_time for _, _, m in reader.iter_messages()] == [100, 101, 102, 103, 104]

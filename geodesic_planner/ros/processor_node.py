@@ -27,7 +27,8 @@ Recording (``bag_path`` non-empty): a new rosbag2 directory per run, never an ex
 (:func:`geodesic_planner.bag.new_bag_path`: an existing non-empty ``bag_path`` gets a timestamped
 bag inside or next to it; the log says where). ``record_topics`` (default: input, output,
 ``/joint_states``) may name other topics as ``name`` (type taken from the ROS graph once a
-publisher appears) or ``name:pkg/msg/Type``. Input and other topics are recorded as the raw bytes
+publisher appears) or ``name=pkg/msg/Type`` (``name:pkg/msg/Type`` works too, but needs quotes
+inside a YAML list on the command line). Input and other topics are recorded as the raw bytes
 received; the node's own output as the exact CDR of the published message (rosbags
 serialisation; ``serialize_message`` would pad empty arrays). Timestamps are receive/publish
 times of the node's clock. Data reach the file at least every 0.5 s (see
@@ -44,12 +45,14 @@ from __future__ import annotations
 import importlib
 import math
 import signal
+import sys
 import threading
 import time
 from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -87,8 +90,8 @@ PARAMETERS: dict[str, tuple[Any, str, bool, str]] = {
                  'next to it); empty disables recording'),
     'storage': ('mcap', _STRING, True, 'bag storage: mcap or sqlite3'),
     'record_topics': (None, _STRING_ARRAY, True,
-                      'topics to record ("name" or "name:pkg/msg/Type"); default: input, output, '
-                      '/joint_states'),
+                      'topics to record ("name", or "name=pkg/msg/Type" / "name:pkg/msg/Type" to give '
+                      'the type); default: input, output, /joint_states'),
 }
 
 
@@ -176,6 +179,8 @@ class TrajectoryProcessorNode(Node):
         self._discovery_timer = None
         if self.get_parameter('bag_path').value:
             self._start_recording()
+        else:
+            self._parse_record_topics()  # validated even when recording is off
         self.get_logger().info(
             f'processing {self.input_topic} -> {self.output_topic}: sample_period '
             f'{float(self.get_parameter("sample_period").value):g} s, velocity_scaling '
@@ -198,14 +203,17 @@ class TrajectoryProcessorNode(Node):
             msg = f'invalid topic name in record_topics: {topic!r} ({err})'
             raise RequestError(msg) from err
 
-    def _start_recording(self) -> None:
-        base = self.get_parameter('bag_path').value
-        storage = self.get_parameter('storage').value
-        path = new_bag_path(base, prefix=NODE_NAME)
+    def _parse_record_topics(self) -> tuple[dict[str, str], dict[str, str], list[str]]:
+        """record_topics -> (own trajectory topics, other typed topics, topics of unknown type).
+
+        Raises:
+            RequestError: bad topic name, unknown message type, wrong type for input/output.
+        """
         topics: dict[str, str] = {}
         extra: dict[str, str] = {}
+        pending: list[str] = []
         for entry in self.get_parameter('record_topics').value:
-            name, _, msgtype = entry.partition(':')
+            name, _, msgtype = entry.replace('=', ':', 1).partition(':')
             topic = self._resolve(name)
             if topic in (self.input_topic, self.output_topic):
                 if msgtype and msgtype != JOINT_TRAJECTORY:
@@ -214,12 +222,18 @@ class TrajectoryProcessorNode(Node):
                 topics[topic] = JOINT_TRAJECTORY
             elif msgtype or topic in KNOWN_TYPES:
                 extra[topic] = msgtype or KNOWN_TYPES[topic]
-            else:
-                self._pending_types.append(topic)
-        for msgtype in extra.values():
-            if msgtype not in self._typestore.fielddefs:
-                msg = f'record_topics: unknown message type {msgtype!r}'
-                raise RequestError(msg)
+                if extra[topic] not in self._typestore.fielddefs:
+                    msg = f'record_topics: unknown message type {extra[topic]!r} for {topic}'
+                    raise RequestError(msg)
+            elif topic not in pending:
+                pending.append(topic)
+        return topics, extra, pending
+
+    def _start_recording(self) -> None:
+        base = self.get_parameter('bag_path').value
+        storage = self.get_parameter('storage').value
+        topics, extra, self._pending_types = self._parse_record_topics()
+        path = new_bag_path(base, prefix=NODE_NAME)
         custom = {'recorded_by': NODE_NAME, 'input_topic': self.input_topic,
                   'output_topic': self.output_topic}
         for name in ('sample_period', 'velocity_scaling'):  # values at start (they may change later)
@@ -354,7 +368,11 @@ def main(args: list[str] | None = None) -> int:
         stop.set()
 
     # Our own handlers only set a flag: a signal never interrupts a bag write half-way.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except RCLError as err:  # e.g. a -p value rcl cannot parse
+        print(f'[ERROR] [{NODE_NAME}]: cannot start: {err}', file=sys.stderr)
+        return 1
     signal.signal(signal.SIGINT, _on_signal)
     signal.signal(signal.SIGTERM, _on_signal)
     node: TrajectoryProcessorNode | None = None

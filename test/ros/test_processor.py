@@ -291,6 +291,8 @@ def test_parameters_validated_via_service(start_node: Any, ros_node: Any) -> Non
     ({'sample_period': -0.01}, 'sample_period must be finite and > 0'),
     ({'storage': 'rosbag1'}, 'storage must be one of mcap, sqlite3'),
     ({'input_topic': 'bad topic!'}, 'invalid topic name'),
+    ({'record_topics': ['/x=nope_msgs/msg/Nope']}, "unknown message type 'nope_msgs/msg/Nope'"),
+    ({'record_topics': ['/x:std_msgs/msg/Int32']}, 'cannot start'),  # rcl cannot parse it unquoted
 ])
 def test_bad_start_parameters_exit_nonzero(start_node: Any, params: dict[str, Any], reason: str) -> None:
     proc = start_node('trajectory_processor_node', params=params, name='bad_start')
@@ -433,29 +435,36 @@ def test_round_trip_planner_processor_bag(start_node: Any, ros_node: Any, tmp_pa
     assert planner.stop() == 0
 
 
-def test_sigkill_then_repair_recovers_flushed_messages(start_node: Any, ros_node: Any, tmp_path: Path) -> None:
-    """After SIGKILL the bag has no metadata; geodesic-bag repair restores everything flushed."""
+def on_disk(bag: Path, scratch: Path) -> dict[str, int]:
+    """Messages per topic that a recording in progress has already written to its storage file
+    (what would survive a SIGKILL): a copy of the directory, repaired."""
     import shutil
+    import uuid
 
     from geodesic_planner.bag import repair
     from geodesic_planner.errors import BagError
+
+    probe = scratch / f'probe_{uuid.uuid4().hex}'
+    shutil.copytree(bag, probe)
+    try:
+        return repair(probe).messages
+    except BagError:
+        return {}
+    finally:
+        shutil.rmtree(probe, ignore_errors=True)
+
+
+def test_sigkill_then_repair_recovers_flushed_messages(start_node: Any, ros_node: Any, tmp_path: Path) -> None:
+    """After SIGKILL the bag has no metadata; geodesic-bag repair restores everything flushed."""
+    from geodesic_planner.bag import repair
 
     bag = tmp_path / 'bag'
     p = Processor(start_node, ros_node, {'bag_path': str(bag)})
     for k in range(5):
         p.pub.publish(known_trajectory(Q0, Q1 + 0.1 * k))
     outs = p.wait_outputs(5)
-
-    def flushed() -> bool:  # the data is on disk once a copy of the directory repairs to 10 messages
-        probe = tmp_path / f'probe{flushed.n}'
-        flushed.n += 1
-        shutil.copytree(bag, probe)
-        try:
-            return sum(repair(probe).messages.values()) == 10
-        except BagError:
-            return False
-    flushed.n = 0
-    wait_until(flushed, 10.0, what='the recorder to flush 10 messages', watch=p.watch)
+    wait_until(lambda: sum(on_disk(bag, tmp_path).values()) == 10, 10.0,
+               what='the recorder to flush 10 messages', watch=p.watch)
     assert p.process.stop(signal.SIGKILL) == -signal.SIGKILL
     assert not (bag / 'metadata.yaml').exists()
     report = repair(bag)
@@ -494,3 +503,31 @@ def test_concurrent_publishers_every_trajectory_recorded(start_node: Any, ros_no
     expected = sorted(tuple(np.round(min_jerk(np.array([T_END]), T_END, Q0, g)[0][0], 12)) for g in goals.values())
     assert ends == expected
     assert len(outs) == 60
+
+
+def test_record_extra_topics_typed_and_discovered(start_node: Any, ros_node: Any, tmp_path: Path) -> None:
+    """record_topics: 'name=pkg/msg/Type' subscribed at once, a bare name once its type is known."""
+    from std_msgs.msg import Int32, String
+
+    bag = tmp_path / 'bag'
+    p = Processor(start_node, ros_node, {'bag_path': str(bag),
+                                         'record_topics': [INPUT, '/counter=std_msgs/msg/Int32', '/chatter']})
+    p.wait_log('waiting for publishers to learn the types of /chatter')
+    counter = ros_node.create_publisher(Int32, '/counter', QOS)
+    chatter = ros_node.create_publisher(String, '/chatter', QOS)
+    p.wait_log('recording /chatter [std_msgs/msg/String]')
+    wait_for_subscribers(counter, 1, DEADLINE, watch=p.watch)
+    wait_for_subscribers(chatter, 1, DEADLINE, watch=p.watch)
+    for k in range(7):
+        counter.publish(Int32(data=k))
+        chatter.publish(String(data=f'hello {k}'))
+    p.pub.publish(known_trajectory())
+    p.wait_outputs(1)
+    wait_until(lambda: on_disk(bag, tmp_path).get('/chatter') == 7 and on_disk(bag, tmp_path).get('/counter') == 7,
+               DEADLINE, what='7 + 7 messages recorded', watch=p.watch)
+    log = p.stop()
+    assert bag_dir(log) == bag
+    counts = {t.name: t.count for t in bag_info(bag).topics}
+    assert counts == {INPUT: 1, '/counter': 7, '/chatter': 7}  # output not in record_topics
+    assert [m.data for m in decoded(bag, '/counter')] == list(range(7))
+    assert [m.data for m in decoded(bag, '/chatter')] == [f'hello {k}' for k in range(7)]
