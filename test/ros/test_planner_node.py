@@ -27,7 +27,7 @@ from rcl_interfaces.msg import Log  # noqa: E402
 from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
 from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
@@ -350,23 +350,39 @@ def test_plan_timeout_fails_request_and_publishes_nothing(planar: PlannerUnderTe
     check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
 
 
-def test_concurrent_clients_each_success_published_once(planar: PlannerUnderTest, helper: Any,
-                                                         rosout: Collector) -> None:
+def _rss_mb(pid: int) -> float:
+    for line in FsPath(f'/proc/{pid}/status').read_text().splitlines():
+        if line.startswith('VmRSS:'):
+            return int(line.split()[1]) / 1024.0
+    raise AssertionError(f'no VmRSS for pid {pid}')
+
+
+def _hammer(planar: PlannerUnderTest, helper: Any, rosout: Collector, per_client: int,
+            traj: Collector, on_progress: Callable[[int], None] | None = None) -> int:
+    """4 clients x ``per_client`` requests, alternating good and bad (4 kinds of bad).
+
+    Checks: every request answered; good ones planned, bad ones empty with one error line each;
+    every success published exactly once (a sentinel plan closes the run). Returns the successes.
+    """
+    bad_kinds = [make for name, make, _ in _bad_requests()
+                 if name in ('nan_position', 'unnormalised', 'unreachable', 'wrong_frame')]
     clients = [helper.create_client(GetPlan, f'{planar.name}/plan') for _ in range(4)]
-    per_client = 6
     results: list[tuple[int, int, bool]] = []
     errors: list[BaseException] = []
     lock = threading.Lock()
-    n0, k0 = len(planar.traj), len(rosout)
+    n0, k0 = len(traj), len(rosout)
 
     def run(c: int) -> None:
         try:
             for i in range(per_client):
                 good = (c + i) % 2 == 0
-                req = paper_request() if good else _nan_goal()
+                req = paper_request() if good else bad_kinds[(c + i // 2) % len(bad_kinds)]()
                 resp = call_service(clients[c], req, DEADLINE, watch=planar.watch)
                 with lock:
                     results.append((c, len(resp.plan.poses), good))
+                    done = len(results)
+                if on_progress is not None and c == 0:
+                    on_progress(done)
         except BaseException as err:  # noqa: BLE001 - reported by the main thread
             errors.append(err)
 
@@ -377,7 +393,7 @@ def test_concurrent_clients_each_success_published_once(planar: PlannerUnderTest
         for t in threads:
             t.start()
         for t in threads:
-            t.join(4 * DEADLINE)
+            t.join(per_client * DEADLINE)
         assert not errors, errors
         assert len(results) == 4 * per_client             # every request answered
         assert all((n > 0) == good for _, n, good in results)
@@ -385,16 +401,45 @@ def test_concurrent_clients_each_success_published_once(planar: PlannerUnderTest
         # a sentinel plan after all the others: in-order delivery from the one publisher means
         # that any duplicate would arrive before the sentinel's message
         assert len(planar.plan(paper_request()).plan.poses) > 0
-        msgs = planar.wait_trajectories(n0 + successes + 1)
+        msgs = traj.wait_for(n0 + successes + 1, DEADLINE, watch=planar.watch)
         assert len(msgs) == n0 + successes + 1
         for msg in msgs[n0:]:
             check_controller_contract(msg, ROBOT_3R.joint_names)
         wait_until(lambda: len(rosout_since(rosout, k0, planar.logger, INFO)) >= successes + 1,
                    DEADLINE, what='a log line per plan')
         assert len(rosout_since(rosout, k0, planar.logger, ERROR)) == 4 * per_client - successes
+        return successes
     finally:
         for client in clients:
             helper.destroy_client(client)
+
+
+def test_concurrent_clients_each_success_published_once(planar: PlannerUnderTest, helper: Any,
+                                                         rosout: Collector) -> None:
+    assert _hammer(planar, helper, rosout, 6, planar.traj) == 12
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1800)
+def test_load_4x200_memory_flat(planar: PlannerUnderTest, helper: Any, rosout: Collector) -> None:
+    traj = Collector(helper, JointTrajectory, f'{planar.name}/joint_trajectory',
+                     QoSProfile(depth=10, history=HistoryPolicy.KEEP_ALL,
+                                reliability=ReliabilityPolicy.RELIABLE))
+    rss: dict[str, float] = {}
+
+    def progress(done: int) -> None:
+        if done >= 100 and 'warm' not in rss:
+            rss['warm'] = _rss_mb(planar.process.pid)
+
+    try:
+        wait_until(lambda: traj.subscription.get_publisher_count() > 0, DEADLINE,
+                   what='publisher matched')
+        assert _hammer(planar, helper, rosout, 200, traj, progress) == 400
+        rss['end'] = _rss_mb(planar.process.pid)
+    finally:
+        helper.destroy_subscription(traj.subscription)
+    print(f'planner node RSS after 100 requests {rss["warm"]:.1f} MB, after 800 {rss["end"]:.1f} MB')
+    assert rss['end'] - rss['warm'] < 15.0, rss          # MB: flat after warm-up
 
 
 # --------------------------------------------------------------------------- parameters
