@@ -13,10 +13,20 @@ Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default)
   controller that connects later must not execute an old plan (transient_local would replay it).
 * topic ``~/path_markers`` (visualization_msgs/MarkerArray), reliable, transient_local, depth 1:
   the tool path line strip and start/goal axes of the latest plan (RViz started later sees it).
-* subscription ``/joint_states`` (sensor_msgs/JointState, any joint order, extra joints ignored).
-  A message must contain every robot joint exactly once with finite positions; malformed
-  messages are ignored with a (rate-limited) warning naming the cause and never replace the last
-  valid state.
+* subscription ``/joint_states`` (sensor_msgs/JointState, any joint order, extra joints ignored),
+  best effort, depth 10 (only the latest state matters; matches reliable and best-effort
+  publishers). A message must contain every robot joint exactly once with finite positions;
+  malformed messages are ignored with a warning naming the cause (rate-limited per kind of
+  problem) and never replace the last valid state. A valid state outside the joint limits is
+  kept (it is the robot's state) and plans from it fail with the joints named.
+
+Parameters (see :data:`PARAMETERS`; ``ros2 param describe`` shows the same descriptions) are
+validated together in an on-set callback that builds a new :class:`PlannerConfig` or rejects the
+change with a reason; nothing changes on rejection. ``robot``/``robot_description``/``base_link``/
+``tip_link`` may change at run time (the model is reloaded); to change the robot and
+``joint_names`` together use ``set_parameters_atomically`` (the per-parameter service checks each
+change against the others' current values). Invalid values at start: one ``cannot start: ...``
+error line and exit code 1.
 
 Timing: ``path.timed(max_velocity * f, max_acceleration * f**2)`` with ``f = velocity_scaling``.
 For rest-to-rest timing under box limits this is exactly time scaling as joint_trajectory_controller
