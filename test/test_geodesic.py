@@ -445,3 +445,25 @@ def test_evaluate_accepts_unsorted_and_scalar_s(rrpp_path):
     one = path.evaluate(0.5)
     assert all(a.shape == (1, 4) for a in one)
     assert_allclose(one[0][0], path.evaluate(np.array([0.5]))[0][0], atol=0)
+
+
+@pytest.mark.parametrize('d, axis, angle', [
+    ([0.1, 0.05, 0.0], [0, 0, 1], 0.0),                 # pure translation
+    ([0.0, 0.0, 0.0], [0.2, 0.3, 1.0], 0.5),            # pure rotation
+    ([0.0, 0.0, 0.0], [0, 0, 1], np.radians(150)),      # large rotation about the tool axis
+    ([1e-6, 0.0, 0.0], [0, 0, 1], 1e-6),                # tiny move
+], ids=['translation', 'rotation', 'rotation_150deg', 'tiny'])
+def test_six_joint_special_moves(d, axis, angle):
+    robot = load_robot('ur5e')
+    q_a = robot.home + np.array([0.3, -0.2, 0.2, 0.1, 0.3, 0.2])
+    T_a = U.ur5e_fk_batch(q_a[None])[0]
+    T_b = T_a.copy()
+    T_b[:3, :3] = T_a[:3, :3] @ U.axis_angle(axis, angle)
+    T_b[:3, 3] += d
+    path = GeodesicPlanner(robot).plan(None, T_b, start_joints=q_a)
+    s = np.linspace(0, 1, 101)
+    q = path.evaluate(s)[0]
+    q_oracle = U.continuation_ik(U.ur5e_fk_batch, U.line_slerp_oracle(T_a, T_b, s), q_a)
+    assert np.abs(q - q_oracle).max() <= JOINT_TOL
+    dp, dr = U.tool_deviation(U.ur5e_fk_batch, q, T_a, T_b, s)
+    assert dp <= TOOL_TOL and dr <= TOOL_TOL

@@ -370,9 +370,10 @@ def continuation_ik(fk_batch, targets: np.ndarray, q0: np.ndarray, **kw) -> np.n
 def line_slerp_oracle(T_a: np.ndarray, T_b: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Straight line + constant-rate rotation (body-frame axis-angle), written independently."""
     Rrel = T_a[:3, :3].T @ T_b[:3, :3]
-    ang = float(np.arccos(np.clip((np.trace(Rrel) - 1) / 2, -1, 1)))
     axis = np.array([Rrel[2, 1] - Rrel[1, 2], Rrel[0, 2] - Rrel[2, 0], Rrel[1, 0] - Rrel[0, 1]])
-    axis = axis / np.linalg.norm(axis) if ang > 1e-12 else np.array([0.0, 0.0, 1.0])
+    ang = float(np.arctan2(np.linalg.norm(axis) / 2, (np.trace(Rrel) - 1) / 2))
+    assert ang < np.pi - 1e-6, 'rotation of pi: slerp axis ambiguous'
+    axis = axis / np.linalg.norm(axis) if ang > 1e-15 else np.array([0.0, 0.0, 1.0])
     K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     out = np.zeros((len(s), 4, 4))
     for k, sk in enumerate(s):
@@ -456,5 +457,6 @@ def tool_deviation(fk_batch, qs: np.ndarray, T_a: np.ndarray, T_b: np.ndarray, s
     O = line_slerp_oracle(T_a, T_b, s)
     dp = np.linalg.norm(T[:, :3, 3] - O[:, :3, 3], axis=1)
     Rrel = np.swapaxes(T[:, :3, :3], 1, 2) @ O[:, :3, :3]
-    ang = np.arccos(np.clip((np.trace(Rrel, axis1=1, axis2=2) - 1) / 2, -1, 1))
+    vee = np.stack([Rrel[:, 2, 1] - Rrel[:, 1, 2], Rrel[:, 0, 2] - Rrel[:, 2, 0], Rrel[:, 1, 0] - Rrel[:, 0, 1]], 1)
+    ang = np.arctan2(np.linalg.norm(vee, axis=1) / 2, (np.trace(Rrel, axis1=1, axis2=2) - 1) / 2)
     return float(dp.max()), float(ang.max())
