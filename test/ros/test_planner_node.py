@@ -25,7 +25,8 @@ from nav_msgs.srv import GetPlan  # noqa: E402
 from numpy.testing import assert_allclose  # noqa: E402
 from rcl_interfaces.msg import Log  # noqa: E402
 from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
-from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters  # noqa: E402
+from rcl_interfaces.srv import (DescribeParameters, GetParameters, SetParameters,  # noqa: E402
+                                 SetParametersAtomically)
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
@@ -675,6 +676,43 @@ def test_robot_description_with_chain_ends_and_joint_names(start_node: Any, help
         assert len(traj) == 1
     finally:
         helper.destroy_client(client)
+        helper.destroy_subscription(traj.subscription)
+    assert proc.stop() == 0
+
+
+def test_robot_swap_at_runtime(start_node: Any, helper: Any) -> None:
+    proc = start_node('geodesic_planner_node', '-r', '__ns:=/swap', params={'robot': 'planar_3r'})
+    plan = helper.create_client(GetPlan, '/swap/geodesic_planner/plan')
+    atomic = helper.create_client(SetParametersAtomically,
+                                  '/swap/geodesic_planner/set_parameters_atomically')
+    traj = Collector(helper, JointTrajectory, '/swap/geodesic_planner/joint_trajectory',
+                     QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    robot = load_robot('ur5e')
+    names = [f'ur_{n}' for n in robot.joint_names]
+    try:
+        for c in (plan, atomic):
+            wait_for_service(c, DEADLINE, watch=[proc])
+        wait_until(lambda: traj.subscription.get_publisher_count() > 0, DEADLINE,
+                   what='publisher matched', watch=[proc])
+
+        def set_atomically(**values: Any) -> Any:
+            req = SetParametersAtomically.Request(
+                parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in values.items()])
+            return call_service(atomic, req, DEADLINE, watch=[proc]).result
+
+        bad = set_atomically(robot='ur5e', joint_names=['a', 'b', 'c'])
+        assert not bad.successful and 'joint_names' in bad.reason
+        assert set_atomically(robot='ur5e', joint_names=names).successful
+        req, T_a, T_b = line_slerp_request(robot, np.array([0.3, -1.2, 1.4, -1.7, -1.5, 0.2]))
+        assert len(call_service(plan, req, DEADLINE, watch=[proc]).plan.poses) > 0
+        arr = check_controller_contract(traj.wait_for(1, DEADLINE, watch=[proc])[0], names)
+        check_line_slerp(robot, arr, T_a, T_b)
+        # the paper's 3R request is now for a 6-joint arm: unreachable, answered with a reason
+        assert len(call_service(plan, paper_request(), DEADLINE, watch=[proc]).plan.poses) == 0
+        assert len(traj) == 1
+    finally:
+        helper.destroy_client(plan)
+        helper.destroy_client(atomic)
         helper.destroy_subscription(traj.subscription)
     assert proc.stop() == 0
 
