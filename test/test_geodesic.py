@@ -254,7 +254,7 @@ def arm_moves(request):
 
 
 def _check_line_slerp(robot, fkb, path, q_a, T_a, T_b):
-    s = np.linspace(0.0, 1.0, 201)
+    s = np.linspace(0.0, 1.0, 101)
     targets = U.line_slerp_oracle(T_a, T_b, s)
     q_oracle = U.continuation_ik(fkb, targets, q_a)
     q, dq, _, _ = path.evaluate(s)
