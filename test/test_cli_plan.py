@@ -254,3 +254,31 @@ def test_failure_prints_one_error_line_in_process(name, tmp_path, capsys, monkey
     code = plan_main(write_case(tmp_path, name))
     out = capsys.readouterr()
     check_failure(name, code, out.out, out.err)
+
+
+def test_urdf_tip_link_from_request_in_process(tmp_path, capsys, monkeypatch):
+    """base_link/tip_link keys pick a chain out of a tree (test/data/branching.urdf, left branch:
+    p = (0.5 c1 + 0.3 c12, 0.5 s1 + 0.3 s12, 1))."""
+    from geodesic_planner.cli import plan_main
+    shutil.copy(os.path.join(ROOT, 'test', 'data', 'branching.urdf'), tmp_path / 'tree.urdf')
+    req = {'robot': 'tree.urdf', 'tip_link': 'left_tool', 'start_joints': [0.2, 0.5], 'goal_joints': [0.6, 0.9]}
+    (tmp_path / 'req.yaml').write_text(yaml.safe_dump(req))
+    monkeypatch.chdir(tmp_path)
+    assert plan_main(['req.yaml', '--samples', '3']) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d['joint_names'] == ['j1', 'j_left']
+    q = np.array(d['positions'])
+    assert_allclose(q[[0, -1]], [[0.2, 0.5], [0.6, 0.9]], atol=1e-12)
+    q1, q12 = q[:, 0], q.sum(axis=1)
+    assert_allclose(d['ee_positions'], np.stack([0.5 * np.cos(q1) + 0.3 * np.cos(q12),
+                                                 0.5 * np.sin(q1) + 0.3 * np.sin(q12), np.ones(3)], 1),
+                    atol=1e-12)
+
+
+def test_unwritable_output_is_one_error_line(tmp_path, capsys):
+    from geodesic_planner.cli import plan_main
+    code = plan_main([os.path.join(EXAMPLES, 'paper_rrpp_joints.yaml'), '--output', str(tmp_path)])
+    out = capsys.readouterr()
+    assert code != 0
+    lines = [ln for ln in out.err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith('ERROR:') and 'Traceback' not in out.err
