@@ -100,6 +100,30 @@ class _PathSamples:
     cR: np.ndarray
     stop: np.ndarray              # (n+1,) bool: the first derivative jumps here (a corner)
 
+    def refined(self, factor: int) -> _PathSamples:
+        """Samples on ``factor`` times finer steps (interpolated q', q''; q''' left at zero)."""
+        if factor <= 1:
+            return self
+        n = self.s.size - 1
+        frac = np.arange(1, factor) / factor
+        extra = (self.s[:-1, None] + np.diff(self.s)[:, None] * frac[None, :]).reshape(-1)
+        a, b = self.interpolate(extra)
+        dof = self.aR.shape[1]
+        m = n * factor + 1
+        inserted = (np.arange(n)[:, None] * factor + np.arange(1, factor)[None, :]).reshape(-1)
+
+        def merge(node_vals: np.ndarray, extra_vals: np.ndarray) -> np.ndarray:
+            out = np.empty((m,) + node_vals.shape[1:])
+            out[::factor] = node_vals
+            out[inserted] = extra_vals
+            return out
+
+        zeros = np.zeros((m, dof))
+        stop = np.zeros(m, dtype=bool)
+        stop[::factor] = self.stop
+        return _PathSamples(merge(self.s, extra), merge(self.aL, a), merge(self.aR, a),
+                            merge(self.bL, b), merge(self.bR, b), zeros, zeros, stop)
+
     def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First and second derivatives at ``s`` by cubic Hermite interpolation on each step."""
         n = self.s.size - 1
@@ -348,11 +372,18 @@ class _PiecewiseLaw:
         t = np.asarray(t, dtype=float)
         if len(self.laws) == 1:
             return self.laws[0].evaluate(t)
+        # Times within round-off of a rest snap onto it (exact rest there).
+        offs = self.t_offsets
+        j = _clip(np.searchsorted(offs, t), 1, offs.size - 1)
+        near = np.where(np.abs(t - offs[j - 1]) <= np.abs(t - offs[j]), offs[j - 1], offs[j])
+        t = np.where(np.abs(t - near) <= 1e-12 * max(1.0, self.duration), near, t)
         idx = _clip(np.searchsorted(self.t_offsets, t, side='right') - 1, 0, len(self.laws) - 1)
         out = [np.empty(t.shape) for _ in range(4)]
         for i in np.unique(idx):
             sel = idx == i
-            for arr, val in zip(out, self.laws[i].evaluate(t[sel] - self.t_offsets[i])):
+            law = self.laws[i]
+            local = np.where(t[sel] >= offs[i + 1], law.duration, t[sel] - offs[i])
+            for arr, val in zip(out, law.evaluate(local)):
                 arr[sel] = val
         return out[0], out[1], out[2], out[3]
 
@@ -504,7 +535,7 @@ def _at_path_parameter(law: _PiecewiseLaw, t_grid: np.ndarray, s_grid: np.ndarra
 
 
 def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration: Any = None,
-                      duration: float | None = None, *, grid_points: int = 100,
+                      duration: float | None = None, *, grid_points: int = 100, refine: int = 2,
                       smoothing: float = 0.05, check_samples: int | None = None) -> Trajectory:
     """Fastest smooth rest-to-rest time law along ``path`` within joint limits.
 
@@ -521,7 +552,9 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
         max_velocity: per-joint limit (dof,) or scalar, rad/s (m/s for prismatic); None: robot's.
         max_acceleration: per-joint limit (dof,) or scalar, rad/s^2 (m/s^2); None: robot's.
         duration: if given, the law is stretched uniformly to exactly this duration, s.
-        grid_points: number of uniform s intervals of the time-optimal (TOPP) pass.
+        grid_points: number of uniform s intervals at which the path is evaluated.
+        refine: the time-optimal (TOPP) pass runs on ``refine`` times finer steps, with q' and q''
+            interpolated in between (no further path evaluations).
         smoothing: acceleration-ramp time of the smoothing as a fraction of the TOPP duration,
             in (0, 1]; the smooth law lasts about ``(1 + smoothing) * topp_duration``.
         check_samples: time samples of the dense limit check (default max(4000, 20 nodes)).
@@ -534,6 +567,8 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
     grid_points = int(grid_points)
     if grid_points < 2:
         raise LimitError(f'grid_points must be >= 2, got {grid_points}')
+    if int(refine) < 1:
+        raise LimitError(f'refine must be >= 1, got {refine}')
     if not (0.0 < float(smoothing) <= 1.0):
         raise LimitError(f'smoothing must be in (0, 1], got {smoothing!r}')
     if duration is not None:
@@ -562,8 +597,9 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
                           max_acceleration=amax, topp_duration=0.0, min_duration=0.0,
                           rest_times=(0.0, float(T)))
 
-    x = _topp(ps, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN))
-    law = _build_piecewise_law(ps.s, x, float(smoothing))
+    fine = ps.refined(int(refine))
+    x = _topp(fine, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN))
+    law = _build_piecewise_law(fine.s, x, float(smoothing))
 
     # Dense check of the smoothed law against the full limits; stretch time if needed.
     m = int(check_samples) if check_samples is not None else max(4000, 20 * ps.s.size)
