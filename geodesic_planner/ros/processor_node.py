@@ -257,9 +257,12 @@ class TrajectoryProcessorNode(Node):
             msg = f'cannot record {topic}: message type {msgtype} not available in Python ({err})'
             raise RequestError(msg) from err
         # Best available: reliable with reliable publishers, best effort otherwise.
+        events = SubscriptionEventCallbacks(
+            matched=lambda status, t=topic: self._log_matched(t, status),
+            message_lost=lambda status, t=topic: self._log_lost(t, status))
         self._extra_subs[topic] = self.create_subscription(
             cls, topic, lambda raw, t=topic: self._record(t, raw),
-            _qos(ReliabilityPolicy.BEST_AVAILABLE, keep_all=True), raw=True)
+            _qos(ReliabilityPolicy.BEST_AVAILABLE, keep_all=True), event_callbacks=events, raw=True)
 
     def _discover_types(self) -> None:
         types = dict(self.get_topic_names_and_types())
@@ -307,14 +310,22 @@ class TrajectoryProcessorNode(Node):
             f'received {self.received}, published {self.published}, rejected {self.rejected}')
 
     # ------------------------------------------------------------------ processing
-    def _on_input_matched(self, status: Any) -> None:  # noqa: ANN401
+    def _log_matched(self, topic: str, status: Any) -> None:  # noqa: ANN401
+        # A volatile reader gets only what is published after *it* matched the writer: tests and
+        # users can wait for this line before publishing.
         if status.current_count_change:
-            self.get_logger().info(f'input {self.input_topic}: {status.current_count} publisher(s) matched')
+            self.get_logger().info(f'{topic}: {status.current_count} publisher(s) matched')
+
+    def _log_lost(self, topic: str, status: Any) -> None:  # noqa: ANN401
+        self.get_logger().error(
+            f'{topic}: {status.total_count_change} message(s) lost before reception '
+            f'({status.total_count} in total)')
+
+    def _on_input_matched(self, status: Any) -> None:  # noqa: ANN401
+        self._log_matched(f'input {self.input_topic}', status)
 
     def _on_input_lost(self, status: Any) -> None:  # noqa: ANN401
-        self.get_logger().error(
-            f'input {self.input_topic}: {status.total_count_change} message(s) lost before reception '
-            f'({status.total_count} in total)')
+        self._log_lost(f'input {self.input_topic}', status)
 
     def _on_input(self, raw: bytes) -> None:
         self.received += 1

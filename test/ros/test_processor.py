@@ -99,8 +99,19 @@ class Processor:
         self.set_client = node.create_client(SetParameters, '/trajectory_processor/set_parameters')
         self.get_client = node.create_client(GetParameters, '/trajectory_processor/get_parameters')
         wait_for_subscribers(self.pub, 1, DEADLINE, watch=self.watch)
+        self.wait_matched(INPUT, 1)
         wait_until(lambda: self.out.subscription.get_publisher_count() > 0, DEADLINE,
                    what='processor output publisher matched', watch=self.watch)
+
+    def wait_matched(self, topic: str, n: int) -> None:
+        """Wait until the node's subscription to ``topic`` matched ``n`` publishers.
+
+        Our publisher seeing the subscription is not enough: a volatile reader drops what was
+        sent before it had matched the writer itself (Fast DDS), so wait for the node's log.
+        """
+        pattern = re.compile(rf'{re.escape(topic)}: (\d+) publisher\(s\) matched')
+        wait_until(lambda: any(int(c) >= n for c in pattern.findall(self.process.log_text())), DEADLINE,
+                   what=f'{n} publisher(s) matched by the node on {topic}', watch=self.watch)
 
     def wait_outputs(self, n: int) -> list[JointTrajectory]:
         return self.out.wait_for(n, DEADLINE, watch=self.watch)
@@ -216,6 +227,7 @@ def test_burst_then_sigint_every_received_message_recorded(start_node: Any, ros_
     p = Processor(start_node, ros_node, {'bag_path': str(tmp_path / 'bag'), 'sample_period': 0.05})
     js_pub = ros_node.create_publisher(JointState, '/joint_states', QOS)
     wait_for_subscribers(js_pub, 1, DEADLINE, watch=p.watch)
+    p.wait_matched('/joint_states', 1)
     n = 30
     goals = [Q1 + 0.01 * k for k in range(n)]
     for k in range(n):
@@ -232,6 +244,7 @@ def test_burst_then_sigint_every_received_message_recorded(start_node: Any, ros_
     assert counts[OUTPUT] == n
     m = re.search(r'/joint_states: (\d+)\)', log)
     assert m and counts['/joint_states'] == int(m.group(1))
+    assert counts['/joint_states'] <= n
     rec_out = read_trajectories(path, OUTPUT)
     for out, rec in zip(outs, rec_out):
         arr = cv.joint_trajectory_to_arrays(out)
@@ -399,9 +412,8 @@ def test_round_trip_planner_processor_bag(start_node: Any, ros_node: Any, tmp_pa
     client = ros_node.create_client(GetPlan, '/geodesic_planner/plan')
     wait_for_service(client, DEADLINE, watch=watch)
     wait_until(lambda: planned.subscription.get_publisher_count() > 0, DEADLINE, what='planner publisher', watch=watch)
-    # the processor's input must see both the planner and this test's publisher before the plan
-    wait_until(lambda: 'input /geodesic_planner/joint_trajectory: 2 publisher(s) matched' in p.process.log_text(),
-               DEADLINE, what='processor matched the planner', watch=watch)
+    # the processor's input must have matched both the planner and this test's publisher
+    p.wait_matched(INPUT, 2)
     response = call_service(client, GetPlan.Request(start=_pose_3r(*A_3R), goal=_pose_3r(*B_3R)), DEADLINE,
                             watch=watch)
     assert response.plan.poses
@@ -482,6 +494,7 @@ def test_concurrent_publishers_every_trajectory_recorded(start_node: Any, ros_no
     pubs = [p.pub] + [ros_node.create_publisher(JointTrajectory, INPUT, QOS) for _ in range(3)]
     for pub in pubs:
         wait_for_subscribers(pub, 1, DEADLINE, watch=p.watch)
+    p.wait_matched(INPUT, 4)
     goals = {(w, k): Q1 + np.array([0.01 * w, 0.001 * k, 0.0]) for w in range(4) for k in range(15)}
 
     def work(w: int) -> None:
@@ -518,6 +531,8 @@ def test_record_extra_topics_typed_and_discovered(start_node: Any, ros_node: Any
     p.wait_log('recording /chatter [std_msgs/msg/String]')
     wait_for_subscribers(counter, 1, DEADLINE, watch=p.watch)
     wait_for_subscribers(chatter, 1, DEADLINE, watch=p.watch)
+    p.wait_matched('/counter', 1)
+    p.wait_matched('/chatter', 1)
     for k in range(7):
         counter.publish(Int32(data=k))
         chatter.publish(String(data=f'hello {k}'))
