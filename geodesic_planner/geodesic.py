@@ -249,6 +249,9 @@ def solve_geodesic_bvp(
             warnings.simplefilter('ignore')
             sol = solve_bvp(fun, bc, s_nodes, y0, fun_jac=fun_jac, bc_jac=bc_jac, tol=tol,
                             max_nodes=max_nodes, bc_tol=1e-10)
+    except SingularMetricError as err:
+        raise BVPError(f'geodesic solver diverged for robot {equations.robot.name!r} (its iterates '
+                       f'reached a configuration where the metric is singular): {err}', status=-1) from err
     except _TimeLimit:
         raise BVPError(f'geodesic solver exceeded its time limit of {time_limit:g} s for robot '
                        f'{equations.robot.name!r}', status=-2) from None

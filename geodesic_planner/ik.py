@@ -17,6 +17,8 @@ from .transforms import pose_error
 
 #: Default allowed embedding distance between the requested pose and the nearest reachable one.
 DEFAULT_IK_TOLERANCE = 1e-3
+#: Residual below which a pose counts as reached exactly.
+EXACT_RESIDUAL = 1e-9
 #: Convergence threshold on the step size (rad or m).
 STEP_TOL = 1e-13
 
@@ -162,59 +164,78 @@ def solve_ik(
         T_target: 4x4 base->tool target.
         seed: initial joints (dof,); the robot's home when None. The branch found is the one the
             seed leads to (so seeding the goal with the start solution keeps the branch).
-        tolerance: allowed weighted embedding distance to the target (default 1e-3).
-        restarts: extra random seeds (within limits) tried if the seed does not succeed.
+        tolerance: allowed weighted embedding distance between the target and the nearest
+            reachable pose (default 1e-3); used for poses an arm cannot reach exactly. Arms with
+            6 or more joints must reach a pose exactly (residual <= 1e-9) unless no seed does.
+        restarts: extra random seeds (within limits) tried if the seed does not succeed; among
+            exact solutions the one nearest to the seed is returned.
     Returns:
         IKSolution.
     Raises:
         IKError: unreachable beyond tolerance or outside joint limits (if raise_on_failure).
+        RequestError: non-positive tolerance, bad seed.
     """
-    tol = DEFAULT_IK_TOLERANCE if tolerance is None or tolerance <= 0 else float(tolerance)
+    if tolerance is None:
+        tol = DEFAULT_IK_TOLERANCE
+    elif not (np.isfinite(tolerance) and tolerance > 0):
+        raise RequestError(f'IK tolerance must be a positive number, got {tolerance}')
+    else:
+        tol = float(tolerance)
     T_target = np.asarray(T_target, dtype=float)
-    q0 = robot.home if seed is None else robot.check_joints(seed, 'IK seed')
-    seeds = [np.asarray(q0, dtype=float)]
+    q0 = np.asarray(robot.home if seed is None else robot.check_joints(seed, 'IK seed'), dtype=float)
+    preferred = [q0]
     if robot.name == 'planar_3r' and abs(T_target[2, 3]) < 1e-9:
         closed = [c for c in (planar_3r_ik(T_target, elbow=1), planar_3r_ik(T_target, elbow=-1))
                   if c is not None]
         if closed:
             # Default branch θ2 > 0 (paper Table 2); with a seed, the branch nearest to it.
             if seed is not None:
-                closed.sort(key=lambda c: float(np.linalg.norm(c - seeds[0])))
-            seeds = [closed[0], seeds[0], *closed[1:]]
+                closed.sort(key=lambda c: float(np.linalg.norm(c - q0)))
+            preferred = [closed[0], q0, *closed[1:]]
     rng = np.random.default_rng(rng_seed)
     lo = np.where(np.isfinite(robot.lower), robot.lower, -np.pi)
     hi = np.where(np.isfinite(robot.upper), robot.upper, np.pi)
-    seeds += list(rng.uniform(lo, hi, size=(restarts, robot.dof)))
-    seeds_arr = np.array(seeds)
+    batches = [np.array(preferred[:1]), np.array(preferred[1:] + list(rng.uniform(lo, hi, (restarts, robot.dof))))]
+    # Arms with 6 or more joints reach poses in their workspace exactly: do not stop at a local
+    # minimum that merely lies within the tolerance (the tolerance is for unreachable poses).
+    full_task = robot.dof >= 6
+    qs: list[np.ndarray] = []
+    res_l: list[float] = []
     total_it = 0
-    best: IKSolution | None = None
-    # First the preferred seeds alone (branch consistency), then all restarts at once.
-    for batch in (seeds_arr[:1], seeds_arr[1:]):
+    for batch in batches:
         if batch.shape[0] == 0:
             continue
         q, res, it = dls_batch(robot, np.broadcast_to(T_target, (batch.shape[0], 4, 4)), batch,
                                position_weight=position_weight, orientation_weight=orientation_weight,
                                max_iterations=100)
         total_it += it
-        for k in range(q.shape[0]):
-            qk = _wrap_into_limits(robot, q[k])
-            ok_lim = bool(robot.within_limits(qk, 1e-9))
-            cand_res = float(res[k])
-            good = ok_lim and cand_res <= tol
-            if best is None or (good and not best.success) or (
-                    good == best.success and cand_res < best.residual - 1e-12 and (not good or k == 0)):
-                dp, dr = pose_error(robot.fk(qk), T_target)
-                reason = ''
-                if not ok_lim:
-                    reason = 'solution outside joint limits'
-                elif cand_res > tol:
-                    reason = f'nearest reachable pose is {cand_res:.4g} away (tolerance {tol:.3g})'
-                best = IKSolution(qk, good, total_it, cand_res, float(dp), float(dr), reason)
-        if best is not None and best.success:
+        qs += [_wrap_into_limits(robot, qk) for qk in q]
+        res_l += [float(r) for r in res]
+        ok = np.array([bool(robot.within_limits(qk, 1e-9)) for qk in qs])
+        r = np.array(res_l)
+        if np.any(ok & (r <= EXACT_RESIDUAL)) or (not full_task and np.any(ok & (r <= tol))):
             break
-    assert best is not None
-    best = IKSolution(best.q, best.success, total_it, best.residual, best.position_error,
-                      best.orientation_error, best.reason)
+    ok = np.array([bool(robot.within_limits(qk, 1e-9)) for qk in qs])
+    r = np.array(res_l)
+    dist = np.array([float(np.linalg.norm(qk - q0)) for qk in qs])
+    exact = ok & (r <= EXACT_RESIDUAL)
+    within = ok & (r <= tol)
+    if np.any(exact):
+        k = int(np.argmin(np.where(exact, dist, np.inf)))       # the exact solution nearest the seed
+    elif np.any(within):
+        k = int(np.argmin(np.where(within, r, np.inf)))         # the nearest reachable pose
+    elif np.any(ok):
+        k = int(np.argmin(np.where(ok, r, np.inf)))
+    else:
+        k = int(np.argmin(r))
+    success = bool(within[k])
+    reason = ''
+    if not ok[k]:
+        reason = 'the only solutions found lie outside the joint limits'
+    elif not success:
+        reason = f'nearest reachable pose is {r[k]:.4g} away (tolerance {tol:.3g})'
+    dp, dr = pose_error(robot.fk(qs[k]), T_target)
+    best = IKSolution(qs[k], success, total_it, float(r[k]), float(dp), float(dr), reason)
     if not best.success and raise_on_failure:
         raise IKError(
             f'IK failed for robot {robot.name!r}: {best.reason}; target position '

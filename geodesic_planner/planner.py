@@ -31,6 +31,8 @@ if TYPE_CHECKING:
 DEFAULT_TOL = 1e-5
 #: Joint positions may exceed their limits by this much (round-off), rad or m.
 LIMIT_SLACK = 1e-9
+#: Steps of the line-following goal IK used when the start joints alone do not seed the goal.
+GOAL_CONTINUATION_STEPS = 16
 #: Default wall-clock budget of one geodesic solve, s.
 DEFAULT_TIME_LIMIT = 10.0
 #: Default number of initial mesh nodes.
@@ -83,10 +85,29 @@ class GeodesicPlanner:
         self.check_limits = check_limits
 
     # ------------------------------------------------------------------ ends
-    def _ik(self, T: np.ndarray, seed: np.ndarray | None, tolerance: float | None) -> IKSolution:
+    def _ik(self, T: np.ndarray, seed: np.ndarray | None, tolerance: float | None,
+            **kwargs: object) -> IKSolution:
         return solve_ik(self.robot, T, seed, position_weight=self.metric.position_weight,
                         orientation_weight=self.metric.effective_orientation_weight or 1.0,
-                        tolerance=self.ik_tolerance if tolerance is None else tolerance)
+                        tolerance=self.ik_tolerance if tolerance is None else tolerance,
+                        **kwargs)  # type: ignore[arg-type]
+
+    def _goal_ik(self, T_goal: np.ndarray, q_a: np.ndarray, tolerance: float | None) -> IKSolution:
+        """Goal IK on the start's branch: seeded with the start joints; if that seed alone does
+        not reach the goal, follow the straight line + slerp from the start pose in small steps
+        (continuation) before falling back to random restarts."""
+        first = self._ik(T_goal, q_a, tolerance, restarts=0, raise_on_failure=False)
+        if first.success:
+            return first
+        T_a = self.robot.fk(q_a)
+        q = q_a
+        for T in line_slerp(T_a, T_goal, np.linspace(0.0, 1.0, GOAL_CONTINUATION_STEPS + 1)[1:-1]):
+            step = self._ik(T, q, tolerance, restarts=0, raise_on_failure=False)
+            q = step.q
+        cont = self._ik(T_goal, q, tolerance, restarts=0, raise_on_failure=False)
+        if cont.success:
+            return cont
+        return self._ik(T_goal, q_a, tolerance)
 
     def resolve_ends(self, start: np.ndarray | None, goal: np.ndarray | None,
                      start_joints: object = None, goal_joints: object = None,
@@ -108,7 +129,7 @@ class GeodesicPlanner:
         if goal_joints is not None:
             q_b = self.robot.check_joints(goal_joints, 'goal_joints')
         elif goal is not None:
-            ik_b = self._ik(check_transform(goal, 'goal pose'), q_a, tolerance)
+            ik_b = self._goal_ik(check_transform(goal, 'goal pose'), q_a, tolerance)
             q_b = ik_b.q
         else:
             raise RequestError('goal: give a goal pose or goal_joints')
@@ -265,7 +286,7 @@ class GeodesicPlanner:
             q_prev = ik_a.q
         pieces = []
         for i, T in enumerate(poses[1:], start=1):
-            ik_b = self._ik(check_transform(T, f'via point {i}'), q_prev, tolerance)
+            ik_b = self._goal_ik(check_transform(T, f'via point {i}'), q_prev, tolerance)
             pieces.append(self._solve(q_prev, ik_b.q, ik_a if i == 1 else None, ik_b, time.perf_counter()))
             q_prev = ik_b.q
         return PiecewiseGeodesicPath(pieces, (time.perf_counter() - t0) * 1e3)

@@ -102,6 +102,9 @@ def load_robot(name_or_path: str, *, base_link: str | None = None, tip_link: str
     if not isinstance(name_or_path, str) or not name_or_path:
         raise RequestError(f'robot: expected a preset name or URDF path, got {name_or_path!r}')
     if name_or_path in PRESETS:
+        if base_link is not None or tip_link is not None:
+            raise RequestError(f'robot: base_link/tip_link apply to URDF models, not to the preset '
+                               f'{name_or_path!r}')
         return PRESETS[name_or_path]()
     if name_or_path.endswith('.urdf') or os.sep in name_or_path:
         from .urdf import chain_from_urdf

@@ -140,5 +140,27 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
         fixed.append(np.eye(4))
     if not joints:
         raise KinematicsError(f'URDF: no actuated joint between {base_link!r} and {tip_link!r}')
-    home = np.clip(np.zeros(len(joints)), [jt.lower for jt in joints], [jt.upper for jt in joints])
-    return Chain(model, joints, fixed, base_link=base_link, tip_link=tip_link, home=home)
+    chain = Chain(model, joints, fixed, base_link=base_link, tip_link=tip_link)
+    return Chain(model, joints, fixed, base_link=base_link, tip_link=tip_link, home=regular_home(chain))
+
+
+def regular_home(chain: Chain) -> np.ndarray:
+    """A default IK seed away from singularities: the zero pose (clipped into the limits) if the
+    tool Jacobian is well conditioned there, else the best of a few fixed bent poses.
+
+    URDF zero poses are often singular (arm stretched straight up), and an IK seeded there picks
+    a near-singular branch.
+    """
+    lo, hi = chain.lower, chain.upper
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    mid = np.where(finite, 0.5 * (np.where(finite, lo, 0.0) + np.where(finite, hi, 0.0)), 0.0)
+    bend = np.where(np.arange(chain.dof) % 2 == 0, 0.4, -0.6)
+    candidates = [np.zeros(chain.dof), bend, -bend, mid, mid + bend, mid - bend]
+    margin = np.where(finite, 1e-3 * (np.where(finite, hi, 0.0) - np.where(finite, lo, 0.0)), 0.0)
+    candidates = [np.clip(c, lo + margin, hi - margin) for c in candidates]
+    k = min(chain.dof, 6)
+    sv = np.linalg.svd(chain.jacobian12(np.array(candidates)), compute_uv=False)[:, :k]
+    quality = sv[:, -1] / sv[:, 0]
+    if quality[0] > 0.05:
+        return candidates[0]
+    return candidates[int(np.argmax(quality))]

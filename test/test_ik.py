@@ -114,10 +114,6 @@ def test_reachable_poses_solved_exactly(name):
                 assert_allclose(sol.q, q, atol=1e-7)  # the seed's branch
 
 
-@pytest.mark.xfail(strict=True, reason='BUG: solve_ik declares success once the embedding residual is '
-                   'below the 1e-3 tolerance without converging; from a singular default seed '
-                   '(iiwa_like_7r home = zeros, arm straight up) reachable poses come back up to '
-                   '4e-5 m / 2.4e-4 rad off')
 def test_reachable_poses_solved_exactly_from_singular_default_seed():
     robot = load_robot(IIWA)
     rng = np.random.default_rng(1)
@@ -130,9 +126,6 @@ def test_reachable_poses_solved_exactly_from_singular_default_seed():
     assert worst < 1e-9, f'IK pose error up to {worst:.3g}'
 
 
-@pytest.mark.xfail(strict=True, reason='BUG: solve_ik accepts a non-converged local minimum on a joint '
-                   'limit as success: panda, pose = fk(q) with q inside the limits, default seed: '
-                   'returns q2 = -1.763 (lower limit) with the tool 1.3e-4 m / 9e-5 rad off, success=True')
 def test_reachable_panda_pose_not_accepted_at_a_joint_limit_local_minimum():
     robot = load_robot('panda')
     q = np.array([0.305, 0.331, 2.018, -2.574, -0.542, 2.728, -2.648])

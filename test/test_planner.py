@@ -186,14 +186,8 @@ def test_seven_joint_default_tolerance_is_converged(redundant):
     assert np.abs(fkb(q)[:, :3, 3] - fkb(tight.evaluate(s)[0])[:, :3, 3]).max() <= 1e-6
 
 
-def test_seven_joints_poses_only(redundant, request):
+def test_seven_joints_poses_only(redundant):
     robot, fkb, moves = redundant
-    if robot.name == 'iiwa_like_7r':
-        request.node.add_marker(pytest.mark.xfail(strict=True, raises=GeodesicPlannerError, reason=(
-            'BUG: start IK from the singular default seed (URDF home = zeros, arm straight up) ends '
-            'on joint 7 lower limit (-3.054) after 100 iterations; the goal IK seeded there fails '
-            'and a random restart jumps branch (|dq| up to 2.4 rad), then solve_bvp fails '
-            '(status 2, singular Jacobian): BVPError for an ordinary 0.1-0.2 m, 10-30 deg move')))
     planner = GeodesicPlanner(robot)
     s = np.linspace(0, 1, 101)
     for _, T_a, T_b in moves:
@@ -245,11 +239,6 @@ def test_shared_planner_across_threads_gives_sequential_results():
         assert_allclose(got, sequential[k % len(moves)], atol=0, rtol=0)
 
 
-@pytest.mark.xfail(strict=True, raises=GeodesicPlannerError, reason=(
-    'BUG: poses-only plan on a URDF arm whose default seed (home = zeros) is singular: the start IK '
-    'lands on a nearly singular branch (q3 = 0.118, smallest singular value 0.017) from which the '
-    'line to the goal crosses the elbow singularity; the goal IK restarts on another branch '
-    '(|dq| up to 2.6 rad) and solve_bvp exhausts max_nodes -> BVPError for an ordinary move'))
 def test_urdf_arm_with_singular_home_plans_ordinary_move_from_poses():
     """UR5e kinematics as a URDF with a base offset and a tool; the move is 0.10 m and 27 deg
     (the ur5e preset, whose home is a regular configuration, plans the same move fine)."""
