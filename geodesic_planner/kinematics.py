@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import KinematicsError, RequestError
+from .transforms import hat
 
 REVOLUTE = 'revolute'
 PRISMATIC = 'prismatic'
@@ -261,20 +262,12 @@ class Chain:
         u = Tj[..., :3, 2]  # joint axes in the base frame (all axes were folded onto z)
         p = Tj[..., :3, 3]
         X = np.zeros(Tj.shape)
-        rev = self._revolute_mask
-        w = u * rev
-        X[..., 0, 1] = -w[..., 2]
-        X[..., 0, 2] = w[..., 1]
-        X[..., 1, 0] = w[..., 2]
-        X[..., 1, 2] = -w[..., 0]
-        X[..., 2, 0] = -w[..., 1]
-        X[..., 2, 1] = w[..., 0]
+        w = u * self._revolute_mask
+        X[..., :3, :3] = hat(w)
         # v = p × ω for revolute joints, the axis for prismatic ones
-        X[..., 0, 3] = p[..., 1] * w[..., 2] - p[..., 2] * w[..., 1]
-        X[..., 1, 3] = p[..., 2] * w[..., 0] - p[..., 0] * w[..., 2]
-        X[..., 2, 3] = p[..., 0] * w[..., 1] - p[..., 1] * w[..., 0]
+        X[..., :3, 3] = np.einsum('...ij,...j->...i', hat(p), w)
         if not self._all_revolute:
-            X[..., :3, 3] += u * (1.0 - rev)
+            X[..., :3, 3] += u * (1.0 - self._revolute_mask)
         return X, T
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
@@ -332,23 +325,8 @@ def _rotation_z_to(u: np.ndarray) -> np.ndarray:
     if c < -1 + 1e-15:
         return np.diag([1.0, -1.0, -1.0])
     k = np.cross(z, u)
-    K = _hat3(k)
+    K = hat(k)
     return np.eye(3) + K + K @ K / (1.0 + c)
-
-
-def _hat3(w: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
-def _hat3_batched(w: np.ndarray) -> np.ndarray:
-    out = np.zeros(w.shape[:-1] + (3, 3))
-    out[..., 0, 1] = -w[..., 2]
-    out[..., 0, 2] = w[..., 1]
-    out[..., 1, 0] = w[..., 2]
-    out[..., 1, 2] = -w[..., 0]
-    out[..., 2, 0] = -w[..., 1]
-    out[..., 2, 1] = w[..., 0]
-    return out
 
 
 def _vee3(K: np.ndarray) -> np.ndarray:
