@@ -92,6 +92,18 @@ def ode_residual(path, samples: int = 1001) -> float:
 
 
 # ---------------------------------------------------------------------------------- baselines
+def _bvp_setup(q_a, q_b, nodes: int):
+    """Boundary conditions and the joint-space linear initial guess shared by the baselines."""
+    n = q_a.size
+
+    def bc(ya, yb):
+        return np.concatenate([ya[:n] - q_a, yb[:n] - q_b])
+
+    s = np.linspace(0.0, 1.0, nodes)
+    y0 = np.vstack([(q_a + s[:, None] * (q_b - q_a)).T, np.repeat((q_b - q_a)[:, None], nodes, 1)])
+    return bc, s, y0
+
+
 def prototype_plan(robot, q_a, q_b, nodes: int = 30, tol: float = 1e-6):
     """Plain numpy prototype: same equations, solve_bvp's finite-difference Jacobian, linear guess."""
     eq = GeodesicEquations(robot, GeodesicPlanner(robot).metric)
@@ -100,11 +112,7 @@ def prototype_plan(robot, q_a, q_b, nodes: int = 30, tol: float = 1e-6):
     def fun(_s, y):
         return np.vstack([y[n:], eq.evaluate(y[:n].T, y[n:].T, jacobians=False)[0].T])
 
-    def bc(ya, yb):
-        return np.concatenate([ya[:n] - q_a, yb[:n] - q_b])
-
-    s = np.linspace(0.0, 1.0, nodes)
-    y0 = np.vstack([(q_a + s[:, None] * (q_b - q_a)).T, np.repeat((q_b - q_a)[:, None], nodes, 1)])
+    bc, s, y0 = _bvp_setup(q_a, q_b, nodes)
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
         return solve_bvp(fun, bc, s, y0, tol=tol, max_nodes=5000)
@@ -134,11 +142,7 @@ def naive_plan(robot, q_a, q_b, nodes: int = 30, tol: float = 1e-6, max_nodes: i
             raise TimeoutError
         return np.vstack([y[n:], np.array([christoffel_acc(y[:n, i], y[n:, i]) for i in range(y.shape[1])]).T])
 
-    def bc(ya, yb):
-        return np.concatenate([ya[:n] - q_a, yb[:n] - q_b])
-
-    s = np.linspace(0.0, 1.0, nodes)
-    y0 = np.vstack([(q_a + s[:, None] * (q_b - q_a)).T, np.repeat((q_b - q_a)[:, None], nodes, 1)])
+    bc, s, y0 = _bvp_setup(q_a, q_b, nodes)
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
         try:
