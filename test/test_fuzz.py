@@ -55,11 +55,11 @@ PRESET_NAMES = ('planar_3r', 'rrpp', 'ur5e', 'panda')
 #: What a message must mention for each exception type (the cause, in words).
 CAUSES: dict[type, str] = {
     RequestError: r'NaN|inf|expected|got|normalis|quaternion|rotation|shape|joints|last row|must|'
-                  r'unknown|give|values',
+                  r'unknown|give|values|both 0|metric|nodes|time_limit|tolerance',
     IKError: r'IK failed.*(nearest reachable pose|outside joint limits)',
     SingularMetricError: r'singular',
-    BVPError: r'did not converge|time limit|solver failed',
-    LimitError: r'limit|duration|traversed|positive|NaN',
+    BVPError: r'did not converge|diverged|time limit|solver failed',
+    LimitError: r'limit|duration|traversed|positive|NaN|expected \d+ or \d+ values|velocity|acceleration',
     KinematicsError: r'robot|joint|DH|axis|limit',
 }
 
@@ -125,6 +125,18 @@ def _record(category: str, outcome: str, seconds: float) -> None:
     STATS['calls'][category] += 1
     STATS['outcomes'][category][outcome] += 1
     STATS['times'][category].append(seconds)
+
+
+def guarded_known(category: str, fn: Callable[[], Any], known: type, bug: str) -> Outcome:
+    """``guarded``, but a bare ``known`` exception (a known bug with a strict xfail regression) is
+    counted under 'known bugs' instead of failing the example."""
+    try:
+        return guarded(category, fn)
+    except AssertionError as err:
+        if type(err.__cause__) is known:
+            _record('known bugs', bug, 0.0)
+            return Outcome()
+        raise
 
 
 def expect_error(category: str, fn: Callable[[], Any], kind: type, cause: str) -> GeodesicPlannerError:
@@ -236,13 +248,20 @@ def check_path(planner: GeodesicPlanner, path: Any, q_a: np.ndarray | None, q_b:
     for name, arr in (('q', q), ("q'", dq), ("q''", ddq), ("q'''", dddq)):
         assert arr.shape == (S_CHECK.size, n), f'evaluate: {name} has shape {arr.shape}'
         assert np.all(np.isfinite(arr)), f'evaluate: {name} has NaN or inf'
-    # Boundary conditions: the given joints, or the IK solutions reported with the path.
-    if q_a is None:
-        ik = getattr(path, 'ik_start', None) or path.pieces[0].ik_start
-        q_a = ik.q
-    if q_b is None:
-        ik = getattr(path, 'ik_goal', None) or path.pieces[-1].ik_goal
-        q_b = ik.q
+    # Boundary conditions: the given joints, or the IK solutions reported with the path (whose
+    # poses are checked against the request below).
+    for end, ik_name, k in (('start', 'ik_start', 0), ('goal', 'ik_goal', -1)):
+        ik = getattr(path, ik_name, None) or getattr(getattr(path, 'pieces', [None])[k], ik_name, None)
+        given = q_a if end == 'start' else q_b
+        if given is None:
+            assert (T_a if end == 'start' else T_b) is not None, f'{end}: neither joints nor a pose'
+            q_ik = ik.q if ik is not None else (path.q_start if end == 'start' else path.q_goal)
+            if end == 'start':
+                q_a = q_ik
+            else:
+                q_b = q_ik
+        if ik is not None:
+            assert ik.success and not ik.reason, f'{end}: path returned with a failed IK ({ik.reason})'
     np.testing.assert_allclose(q[0], q_a, atol=BC_TOL, rtol=0, err_msg='q(0) != start joints')
     np.testing.assert_allclose(q[-1], q_b, atol=BC_TOL, rtol=0, err_msg='q(1) != goal joints')
     np.testing.assert_allclose(path.q_start, q_a, atol=BC_TOL, rtol=0)
@@ -587,3 +606,351 @@ def _quaternions(quat: list[float], position: list[float], scale: float | None, 
 
 
 test_fuzz_quaternions, test_fuzz_quaternions_slow = _quaternions
+
+
+#: Singular configurations: (name, robot, builder(delta, rng-like draws) -> q). At delta = 0 the
+#: Jacobian of the pose is rank-deficient (geometry, not the library): the metric is singular.
+def _planar_stretched(d: float, x: np.ndarray) -> np.ndarray:
+    return np.array([x[0], d, x[1]])            # θ2 = 0: links 1 and 2 aligned (det J = sin θ2)
+
+
+def _planar_folded(d: float, x: np.ndarray) -> np.ndarray:
+    return np.array([x[0], PI - d, x[1]])       # θ2 = π: folded back
+
+
+def _ur5e_elbow(d: float, x: np.ndarray) -> np.ndarray:
+    return np.array([x[0], x[1], d, x[2], x[3], x[4]])   # elbow stretched
+
+
+def _ur5e_wrist(d: float, x: np.ndarray) -> np.ndarray:
+    return np.array([x[0], x[1], x[2], x[3], d, x[4]])   # θ5 = 0: wrist axes 4 and 6 aligned
+
+
+SINGULAR = [('planar_3r', _planar_stretched), ('planar_3r', _planar_folded),
+            ('ur5e', _ur5e_elbow), ('ur5e', _ur5e_wrist)]
+
+
+@fuzz(25, case=st.sampled_from(SINGULAR), data=st.data())
+def _singular(case: tuple[str, Callable[[float, np.ndarray], np.ndarray]], data: Any) -> None:
+    """Starts (or goals) at and near singular configurations: a stretched or folded planar arm, the
+    UR5e elbow and wrist singularities; goals given as joints or as poses."""
+    draw = data.draw
+    name, build = case
+    robot = load_robot(name)
+    planner = GeodesicPlanner(robot, time_limit=SOLVE_TIME_LIMIT)
+    delta = draw(st.sampled_from([0.0, 0.0, 1e-12, 1e-9, 1e-6, 1e-4, 1e-2, -1e-6]))
+    x = np.array(draw(st.lists(st.floats(-2.5, 2.5), min_size=5, max_size=5)))
+    q_s = build(delta, x)
+    q_other = joints_near(draw, robot, q_s, draw(st.sampled_from([1e-6, 0.05, 0.3])))
+    singular_end = draw(st.sampled_from(['start', 'goal']))
+    q_a, q_b = (q_s, q_other) if singular_end == 'start' else (q_other, q_s)
+    by_pose = draw(st.booleans())
+    if by_pose:
+        T_a, T_b = robot.fk(np.stack([q_a, q_b]))
+        out = plan_and_check('singular.poses', planner, T_a, T_b)
+    else:
+        out = plan_and_check('singular.joints', planner, None, None, q_a, q_b)
+        if delta == 0.0:  # exactly singular joints: the planner must say so and where
+            assert isinstance(out.error, SingularMetricError), \
+                f'singular {singular_end} {q_s.tolist()} gave {out.value or out.error!r}'
+            assert f'singular for robot {name!r} at the {singular_end}' in str(out.error), str(out.error)
+
+
+test_fuzz_singular, test_fuzz_singular_slow = _singular
+
+
+@fuzz(15, robot=robots(), data=st.data())
+def _plan_through(robot: Chain, data: Any) -> None:
+    """Piecewise geodesics through 2-5 poses (repeated via points included; sometimes a NaN one)."""
+    draw = data.draw
+    planner = GeodesicPlanner(robot, time_limit=SOLVE_TIME_LIMIT)
+    qs = [joints_in(draw, robot)]
+    for _ in range(draw(st.integers(1, 3))):
+        qs.append(qs[-1].copy() if draw(st.integers(0, 4)) == 0 else joints_near(draw, robot, qs[-1], 0.15))
+    poses = list(robot.fk(np.array(qs)))
+    with_joints = draw(st.booleans())
+    bad = draw(st.sampled_from([None, None, None, 'nan']))
+    if bad:
+        k = draw(st.integers(1, len(poses) - 1))
+        poses[k] = poses[k].copy()
+        poses[k][1, 3] = np.nan
+        expect_error('plan_through', lambda: planner.plan_through(poses, qs[0] if with_joints else None),
+                     RequestError, rf'via point {k}: transform contains NaN or inf')
+        return
+    out = guarded('plan_through', lambda: planner.plan_through(poses, qs[0] if with_joints else None))
+    if out.value is None:
+        return
+    path = out.value
+    check_path(planner, path, qs[0] if with_joints else None, None, None if with_joints else poses[0], poses[-1])
+    bp = path.breakpoints
+    assert bp[0] == 0.0 and bp[-1] == 1.0 and np.all(np.diff(bp) > 0), f'breakpoints {bp}'
+    tr = guarded('plan_through.timed', path.timed)
+    if tr.value is not None:
+        check_trajectory(path, tr.value, robot.max_velocity, robot.max_acceleration)
+
+
+test_fuzz_plan_through, test_fuzz_plan_through_slow = _plan_through
+
+
+_PATHS: dict[str, Any] = {}
+
+
+def sample_path(name: str) -> Any:
+    """A few solved paths, planned once per session (timing is fuzzed on them)."""
+    if name not in _PATHS:
+        if name == 'planar_3r':
+            r = load_robot('planar_3r')
+            _PATHS[name] = GeodesicPlanner(r).plan(None, None, [0.258, 0.583, -0.317], [0.969, 0.380, -0.574])
+        elif name == 'rrpp':
+            r = load_robot('rrpp')
+            _PATHS[name] = GeodesicPlanner(r).plan(None, None, [0.123, -1.539, 0.276, -0.640],
+                                                   [0.129, -1.629, 0.239, -0.643])
+        elif name == 'ur5e':
+            r = load_robot('ur5e')
+            _PATHS[name] = GeodesicPlanner(r).plan(None, None, r.home, r.home + [0.4, -0.3, 0.2, 0.5, -0.2, 1.0])
+        elif name == 'ur5e.piecewise':
+            r = load_robot('ur5e')
+            qs = r.home + np.array([[0, 0, 0, 0, 0, 0], [0.3, 0.1, 0, 0, 0, 0], [0.3, 0.1, 0.2, 0, 0.3, 0]])
+            _PATHS[name] = GeodesicPlanner(r).plan_through(list(r.fk(qs)), qs[0])
+        elif name == 'planar_3r.still':
+            r = load_robot('planar_3r')
+            _PATHS[name] = GeodesicPlanner(r).plan(None, None, [0.3, 0.5, 0.1], [0.3, 0.5, 0.1])
+    return _PATHS[name]
+
+
+LIMIT_VALUE = st.one_of(st.floats(1e-3, 1e3), st.sampled_from([1e-9, 1e9]))
+HOSTILE_LIMIT = st.sampled_from([0.0, -1.0, np.nan, np.inf, -np.inf])
+
+
+@fuzz(40, which=st.sampled_from(['planar_3r', 'rrpp', 'ur5e', 'ur5e.piecewise', 'planar_3r.still']),
+      data=st.data())
+def _timed(which: str, data: Any) -> None:
+    """timed() with random, extreme and hostile limits and durations.
+
+    Oracle: hostile limits (<= 0, NaN, inf, wrong count) give LimitError naming the limit and the
+    joint; a duration below the minimum gives LimitError with the minimum; otherwise the
+    trajectory is within the limits it was given, at rest at both ends, of the asked duration.
+    """
+    draw = data.draw
+    path = sample_path(which)
+    dof = path.dof
+    cause = None
+
+    def limit(what: str) -> Any:
+        nonlocal cause
+        form = draw(st.sampled_from(['none', 'scalar', 'vector', 'vector', 'hostile', 'count']))
+        if form == 'none':
+            return None
+        if form == 'scalar':
+            return draw(LIMIT_VALUE)
+        vec = draw(st.lists(LIMIT_VALUE, min_size=dof, max_size=dof))
+        if form == 'hostile':
+            i = draw(st.integers(0, dof - 1))
+            vec[i] = draw(HOSTILE_LIMIT)
+            cause = cause or rf"{what} for joint '{re.escape(path.joint_names[i])}' must be positive and finite"
+        elif form == 'count':
+            vec = vec + [1.0] if draw(st.booleans()) else vec[:-1]
+            cause = cause or rf'{what}: expected 1 or {dof} values \(one per joint\), got {len(vec)}'
+        return vec
+
+    vmax_in = limit('max_velocity')
+    amax_in = limit('max_acceleration')
+    if cause is not None:
+        expect_error('timed.hostile', lambda: path.timed(vmax_in, amax_in), LimitError, cause)
+        return
+    robot = path.robot
+    vmax = robot.max_velocity if vmax_in is None else np.broadcast_to(np.asarray(vmax_in, float), (dof,))
+    amax = robot.max_acceleration if amax_in is None else np.broadcast_to(np.asarray(amax_in, float), (dof,))
+    out = guarded('timed', lambda: path.timed(vmax_in, amax_in))
+    if out.value is None:
+        return
+    traj = out.value
+    check_trajectory(path, traj, vmax, amax)
+    mode = draw(st.sampled_from(['longer', 'shorter', 'nan', 'negative', 'inf']))
+    if mode == 'longer':
+        want = traj.duration * draw(st.floats(1.0, 10.0))
+        tr2 = guarded('timed.duration', lambda: path.timed(vmax_in, amax_in, duration=want))
+        if tr2.value is not None:
+            assert tr2.value.duration == pytest.approx(want, rel=1e-12, abs=1e-12)
+            check_trajectory(path, tr2.value, vmax, amax)
+    elif mode == 'shorter' and traj.duration > 0:
+        want = traj.duration * draw(st.floats(0.0, 0.999))
+        expect_error('timed.duration', lambda: path.timed(vmax_in, amax_in, duration=want), LimitError,
+                     r'shorter than the minimum')
+    elif mode in ('nan', 'negative', 'inf'):
+        want = {'nan': np.nan, 'negative': -1.0, 'inf': np.inf}[mode]
+        expect_error('timed.duration', lambda: path.timed(vmax_in, amax_in, duration=want), LimitError,
+                     r'duration must be finite and >= 0')
+
+
+test_fuzz_timed, test_fuzz_timed_slow = _timed
+
+
+@fuzz(40, which=st.sampled_from(['planar_3r', 'rrpp', 'ur5e.piecewise']),
+      s=st.one_of(st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=6),
+                  st.lists(st.floats(-1e-11, 1.0 + 1e-11), max_size=6),
+                  st.lists(st.lists(st.floats(0.0, 1.0), min_size=1, max_size=2), min_size=1, max_size=2)))
+def _evaluate(which: str, s: list[Any]) -> None:
+    """evaluate() and ee_poses() on any numbers: NaN/inf, outside [0, 1], round-off, 2-D, empty.
+
+    Oracle: RequestError iff s is not 1-D, not finite, or outside [0, 1] by more than 1e-12.
+    """
+    path = sample_path(which)
+    arr = np.asarray(s, dtype=float) if not (s and isinstance(s[0], list) and len({len(x) for x in s}) > 1) \
+        else None
+    if arr is None:  # BUG tracked by test_regression_ragged_s
+        for fn in (path.evaluate, path.ee_poses):
+            out = guarded_known('evaluate', lambda: fn(s), ValueError, 'evaluate(ragged s): bare ValueError')
+            assert out.value is None, 'ragged s accepted'
+        return
+    out = guarded('evaluate', lambda: path.evaluate(s))
+    pout = guarded('evaluate', lambda: path.ee_poses(s))
+    if arr.ndim != 1:
+        assert isinstance(out.error, RequestError) and re.search(r'1-D|not', str(out.error)), out.error
+    elif not np.all(np.isfinite(arr)):
+        assert isinstance(out.error, RequestError) and 'NaN or inf' in str(out.error), out.error
+    elif arr.size and (arr.min() < -1e-12 or arr.max() > 1 + 1e-12):
+        assert isinstance(out.error, RequestError) and 'must lie in [0, 1]' in str(out.error), out.error
+    else:
+        assert out.error is None, out.error
+        for a in out.value:
+            assert a.shape == (arr.size, path.dof) and np.all(np.isfinite(a))
+        assert pout.value.shape == (arr.size, 4, 4) and np.all(np.isfinite(pout.value))
+        return
+    assert isinstance(pout.error, RequestError), pout.error
+
+
+test_fuzz_evaluate, test_fuzz_evaluate_slow = _evaluate
+
+
+ANY_FLOAT = st.one_of(st.floats(-10.0, 10.0), st.sampled_from([0.0, -1.0, np.nan, np.inf, 1e-12, 1e12]))
+
+
+@fuzz(40, robot_name=st.sampled_from(PRESET_NAMES), metric=st.sampled_from(['paper', 'position', 'PAPER', '', 'dp2']),
+      wp=ANY_FLOAT, wo=ANY_FLOAT, eps=st.one_of(st.none(), ANY_FLOAT), nodes=st.integers(-2, 60),
+      max_nodes=st.sampled_from([2, 5, 11, 100, 2000]), tol=st.one_of(st.floats(1e-9, 1e-2), ANY_FLOAT),
+      time_limit=st.one_of(st.none(), st.sampled_from([0.0, -1.0, np.nan, 1e-9, 0.5, 2.0])))
+def _planner_options(robot_name: str, metric: str, wp: float, wo: float, eps: float | None, nodes: int,
+                     max_nodes: int, tol: float, time_limit: float | None) -> None:
+    """GeodesicPlanner options, valid and not: bad ones give RequestError naming the option."""
+    robot = load_robot(robot_name)
+    mk = guarded('options', lambda: GeodesicPlanner(robot, metric, position_weight=wp, orientation_weight=wo,
+                                                    epsilon=eps, nodes=nodes, max_nodes=max_nodes, tol=tol,
+                                                    time_limit=time_limit))
+    bad_metric = metric not in ('paper', 'position')
+    bad_weight = not all(math.isfinite(v) and v >= 0 for v in (wp, wo) + ((eps,) if eps is not None else ()))
+    bad_nodes = not 3 <= nodes <= max_nodes
+    bad_time = time_limit is not None and not time_limit > 0
+    if bad_metric or bad_weight or bad_nodes or bad_time:
+        assert isinstance(mk.error, RequestError), f'invalid options accepted: {mk.value or mk.error!r}'
+        assert re.search(r'metric|weight|epsilon|nodes|time_limit', str(mk.error)), str(mk.error)
+        return
+    if mk.error is not None:  # e.g. both weights 0 (position metric ignores wo)
+        assert isinstance(mk.error, RequestError) and 'weights are both 0' in str(mk.error), mk.error
+        return
+    planner = mk.value
+    q_a = robot.home if robot_name != 'planar_3r' else np.array([0.258, 0.583, -0.317])
+    q_b = np.clip(q_a + 0.1, robot.lower, robot.upper)
+    if not tol > 0:  # BUG tracked by test_regression_nonpositive_tol
+        guarded_known('options.plan', lambda: planner.plan(None, None, q_a, q_b), ValueError,
+                      'GeodesicPlanner(tol <= 0 or NaN).plan: bare ValueError')
+        return
+    plan_and_check('options.plan', planner, None, None, q_a, q_b, timed=False)
+
+
+test_fuzz_planner_options, test_fuzz_planner_options_slow = _planner_options
+
+
+@fuzz(25, robot=robots(), data=st.data())
+def _solve_ik(robot: Chain, data: Any) -> None:
+    """solve_ik on reachable, nudged and far targets with valid, hostile and missing seeds."""
+    from geodesic_planner.ik import solve_ik
+    draw = data.draw
+    q_t = joints_in(draw, robot)
+    T = robot.fk(q_t).copy()
+    mode = draw(st.sampled_from(['exact', 'exact', 'moved', 'far']))
+    if mode == 'moved':
+        T[:3, 3] += np.array(draw(st.lists(st.floats(-0.3, 0.3), min_size=3, max_size=3)))
+    elif mode == 'far':
+        T[:3, 3] += [0.0, 0.0, 25.0]
+    seed_kind = draw(st.sampled_from(['none', 'near', 'random', 'nan', 'count']))
+    seed = {'none': None, 'near': joints_near(draw, robot, q_t, 0.05), 'random': joints_in(draw, robot),
+            'nan': np.full(robot.dof, np.nan), 'count': np.zeros(robot.dof + 1)}[seed_kind]
+    tol = draw(st.sampled_from([None, 1e-6, 1e-3, 0.1]))
+    if seed_kind in ('nan', 'count'):
+        expect_error('ik', lambda: solve_ik(robot, T, seed, tolerance=tol), RequestError,
+                     r'IK seed: .*(NaN or inf|got \d+ values)')
+        return
+    out = guarded('ik', lambda: solve_ik(robot, T, seed, tolerance=tol))
+    if mode == 'far':
+        assert isinstance(out.error, IKError), out.value
+    if out.value is None:
+        assert isinstance(out.error, IKError), out.error
+        assert math.isfinite(out.error.residual) and out.error.residual > 0
+        return
+    sol = out.value
+    assert sol.success and sol.reason == ''
+    dist = float(np.linalg.norm(embed(robot.fk(sol.q)) - embed(T)))
+    assert dist <= (tol or 1e-3) * (1 + 1e-9), f'IK success but {dist:.3g} from the target'
+    assert dist == pytest.approx(sol.residual, rel=1e-6, abs=1e-12)
+    assert bool(robot.within_limits(sol.q, 1e-9)), 'IK solution outside the limits'
+
+
+test_fuzz_solve_ik, test_fuzz_solve_ik_slow = _solve_ik
+
+
+@fuzz(40, data=st.data())
+def _robot_models(data: Any) -> None:
+    """chain_from_dh with broken tables and limits, load_robot with arbitrary names: KinematicsError
+    / RequestError naming the problem, or a usable chain (fk finite)."""
+    draw = data.draw
+    n = draw(st.integers(0, 4))
+    rows = [list(draw(st.lists(st.floats(-2.0, 2.0), min_size=4, max_size=4))) for _ in range(n)]
+    kinds = [draw(st.sampled_from(['revolute', 'prismatic'])) for _ in range(n)]
+    kw: dict[str, Any] = {}
+    defect = draw(st.sampled_from(['none', 'nan', 'inf', 'kind', 'row', 'limits', 'nan limit', 'speed',
+                                   'home', 'kinds count']))
+    cause = None
+    if n == 0:
+        cause = r'at least one actuated joint|0 DH rows'
+    elif defect in ('nan', 'inf'):
+        rows[draw(st.integers(0, n - 1))][draw(st.integers(0, 3))] = np.nan if defect == 'nan' else np.inf
+        cause = r'fixed transforms must be finite'
+    elif defect == 'kind':
+        kinds[0] = draw(st.sampled_from(['continuous', 'floating', 'ball', '']))
+        cause = r'unsupported type'
+    elif defect == 'row':
+        rows[0] = rows[0][:draw(st.integers(0, 3))]
+        cause = r'DH row 0 needs 4 numbers'
+    elif defect in ('limits', 'nan limit'):
+        kw['lower'] = [1.0] * n
+        kw['upper'] = [0.5 if defect == 'limits' else np.nan] * n
+        cause = r'lower limit > upper limit|limit'
+    elif defect == 'speed':
+        kw['max_velocity'] = draw(st.sampled_from([0.0, -1.0, np.nan]))
+        cause = r'positive velocity and acceleration limits'
+    elif defect == 'home':
+        kw['home'] = [0.0] * (n + 1)
+        cause = rf'home needs {n} values'
+    elif defect == 'kinds count':
+        kinds = kinds[:-1]
+        cause = r'DH rows but \d+ joint kinds'
+    modified = draw(st.booleans())
+    out = guarded('robot models', lambda: chain_from_dh('fuzz', rows, kinds, modified=modified, **kw))
+    if cause is not None:
+        assert isinstance(out.error, KinematicsError), f'{defect}: {out.value or out.error!r}'
+        assert re.search(cause, str(out.error)), f'{defect}: {out.error}'
+    else:
+        assert out.error is None, out.error
+        T = out.value.fk(np.zeros(n))
+        assert np.all(np.isfinite(T))
+    name = draw(st.one_of(st.text(max_size=12).filter(lambda t: '\x00' not in t), st.sampled_from(PRESET_NAMES)))
+    res = guarded('robot models', lambda: load_robot(name))
+    if name in PRESET_NAMES:
+        assert res.value is not None and res.value.name == name
+    else:
+        assert isinstance(res.error, RequestError), res.value
+        assert re.search(r'unknown robot|cannot read URDF|expected a preset', str(res.error)), res.error
+
+
+test_fuzz_robot_models, test_fuzz_robot_models_slow = _robot_models
