@@ -546,3 +546,60 @@ def test_record_extra_topics_typed_and_discovered(start_node: Any, ros_node: Any
     assert counts == {INPUT: 1, '/counter': 7, '/chatter': 7}  # output not in record_topics
     assert [m.data for m in decoded(bag, '/counter')] == list(range(7))
     assert [m.data for m in decoded(bag, '/chatter')] == [f'hello {k}' for k in range(7)]
+
+
+def _plans_under_load(start_node: Any, ros_node: Any, tmp_path: Path, clients: int, per_client: int) -> None:
+    """clients x per_client plan requests (every 4th unreachable) at once: every trajectory the
+    planner publishes is processed once and lands in the bag (input count == output count)."""
+    import threading
+
+    from nav_msgs.srv import GetPlan
+
+    planner = start_node('geodesic_planner_node', params={'robot': 'planar_3r'}, name='planner')
+    planned = Collector(ros_node, JointTrajectory, INPUT, QOS)
+    bag = tmp_path / 'bag'
+    p = Processor(start_node, ros_node, {'velocity_scaling': 0.5, 'bag_path': str(bag)})
+    watch = [planner, p.process]
+    cls = [ros_node.create_client(GetPlan, '/geodesic_planner/plan') for _ in range(clients)]
+    for c in cls:
+        wait_for_service(c, DEADLINE, watch=watch)
+    wait_until(lambda: planned.subscription.get_publisher_count() > 0, DEADLINE, what='planner publisher', watch=watch)
+    p.wait_matched(INPUT, 2)
+    answers: list[bool] = []
+    lock = threading.Lock()
+
+    def work(w: int) -> None:
+        for k in range(per_client):
+            bad = (w + k) % 4 == 3
+            goal = _pose_3r(10.0, 0.0, 0.0) if bad else _pose_3r(1.5, 2.5 - 0.02 * k, B_3R[2] - 0.01 * w)
+            res = call_service(cls[w], GetPlan.Request(start=_pose_3r(*A_3R), goal=goal), 4 * DEADLINE, watch=watch)
+            with lock:
+                answers.append(bool(res.plan.poses) != bad)  # good -> a plan, bad -> empty
+
+    threads = [threading.Thread(target=work, args=(w,)) for w in range(clients)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    n_req = clients * per_client
+    assert len(answers) == n_req and all(answers)
+    n_good = sum(1 for w in range(clients) for k in range(per_client) if (w + k) % 4 != 3)
+    planned.wait_for(n_good, DEADLINE, watch=watch)
+    p.wait_outputs(n_good)
+    log = p.stop()
+    assert f'received {n_good}, published {n_good}, rejected 0' in log
+    counts = {t.name: t.count for t in bag_info(bag).topics}
+    assert counts[INPUT] == counts[OUTPUT] == n_good == len(planned)
+    rec_in = read_trajectories(bag, INPUT)
+    for msg, rec in zip(planned.messages, rec_in):  # every planned trajectory, in order, as received
+        assert_array_equal(rec.positions, cv.joint_trajectory_to_arrays(msg).positions)
+    assert planner.stop() == 0
+
+
+def test_plans_under_load_all_recorded(start_node: Any, ros_node: Any, tmp_path: Path) -> None:
+    _plans_under_load(start_node, ros_node, tmp_path, clients=4, per_client=4)
+
+
+@pytest.mark.slow
+def test_plans_under_load_all_recorded_long(start_node: Any, ros_node: Any, tmp_path: Path) -> None:
+    _plans_under_load(start_node, ros_node, tmp_path, clients=4, per_client=25)
