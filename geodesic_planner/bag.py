@@ -186,8 +186,14 @@ def _to_rosbags(obj: Any, msgtype: str, typestore: Typestore) -> object:  # noqa
         value = getattr(obj, name)
         if ntype == Nodetype.BASE:
             base = detail[0]
-            kwargs[name] = str(value) if base == 'string' else _NUMPY_TYPES[base](value).item() \
-                if base in _NUMPY_TYPES else value
+            if base in ('string', 'wstring'):
+                kwargs[name] = str(value)
+            elif base in _NUMPY_TYPES:
+                if isinstance(value, bytes):  # rclpy byte/char fields
+                    value = ord(value)
+                kwargs[name] = _NUMPY_TYPES[base](value).item()
+            else:
+                kwargs[name] = value
         elif ntype == Nodetype.NAME:
             kwargs[name] = _to_rosbags(value, detail, typestore)
         else:  # ARRAY or SEQUENCE

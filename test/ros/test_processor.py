@@ -338,6 +338,17 @@ def test_to_cdr_exact_for_rclpy_messages() -> None:
     data = to_cdr(msg, JOINT_TRAJECTORY)
     assert deserialize_message(data, JointTrajectory) == msg
     assert len(serialize_message(msg)) >= len(data)
+    # other field kinds: bytes, fixed arrays, byte and char scalars, uint8[] lists
+    from sensor_msgs.msg import Image, NavSatFix
+    from std_msgs.msg import Byte, Char, UInt8MultiArray
+
+    fix = NavSatFix(latitude=1.5)
+    fix.position_covariance[3] = 2.0
+    for m, t in ((Image(height=2, width=3, encoding='rgb8', step=9, data=bytes(range(18))), 'sensor_msgs/msg/Image'),
+                 (fix, 'sensor_msgs/msg/NavSatFix'), (Byte(data=b'\x07'), 'std_msgs/msg/Byte'),
+                 (Char(data=65), 'std_msgs/msg/Char'), (UInt8MultiArray(data=[1, 2, 3]), 'std_msgs/msg/UInt8MultiArray'),
+                 (JointState(name=['a'], position=[1.0]), 'sensor_msgs/msg/JointState')):
+        assert deserialize_message(to_cdr(m, t), type(m)) == m, t
 
 
 @pytest.mark.skipif(not FIXTURE_BAG.exists(), reason=f'fixture bag {FIXTURE_BAG} not recorded yet')
