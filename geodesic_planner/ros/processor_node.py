@@ -15,6 +15,11 @@ Interface (``~`` = ``/trajectory_processor`` by default):
   ``velocity_scaling`` f (times / f, velocities * f, accelerations * f**2, same path), positions,
   velocities and accelerations at every point, last point exactly at the (scaled) end; header
   copied from the input. See :mod:`geodesic_planner.resample` for the interpolation.
+* the log says ``input TOPIC: N publisher(s) matched`` (also for other recorded topics) when a
+  subscription matches publishers: a volatile reader receives only what is published after it
+  has itself matched the writer (Fast DDS drops earlier samples even when the writer already saw
+  the reader), so scripts should wait for that line before the first plan; lost messages
+  reported by the rmw are logged as errors.
 * an invalid input (what joint_trajectory_controller would reject: empty/duplicate joint names,
   no points, wrong sizes, non-finite values, non-increasing ``time_from_start``) is logged as an
   error naming the cause, recorded as received, and not published. The node keeps going.
