@@ -55,7 +55,7 @@ PRESET_NAMES = ('planar_3r', 'rrpp', 'ur5e', 'panda')
 #: What a message must mention for each exception type (the cause, in words).
 CAUSES: dict[type, str] = {
     RequestError: r'NaN|inf|expected|got|normalis|quaternion|rotation|shape|joints|last row|must|'
-                  r'unknown|give|values|both 0|metric|nodes|time_limit|tolerance',
+                  r'unknown|give|values|both 0|metric|nodes|time_limit|tolerance|not a numeric',
     IKError: r'IK failed.*(nearest reachable pose|outside joint limits)',
     SingularMetricError: r'singular',
     BVPError: r'did not converge|diverged|time limit|solver failed',
@@ -954,3 +954,192 @@ def _robot_models(data: Any) -> None:
 
 
 test_fuzz_robot_models, test_fuzz_robot_models_slow = _robot_models
+
+
+# ---------------------------------------------------------------------------------------- regressions
+# One deterministic case per hostile category: exception type AND the cause in the message.
+Q3_A, Q3_B = [0.258, 0.583, -0.317], [0.969, 0.380, -0.574]   # paper Table 2 (planar 3R)
+
+
+@pytest.fixture(scope='module')
+def planar() -> GeodesicPlanner:
+    return GeodesicPlanner(load_robot('planar_3r'), time_limit=SOLVE_TIME_LIMIT)
+
+
+@pytest.fixture(scope='module')
+def ur5e() -> GeodesicPlanner:
+    return GeodesicPlanner(load_robot('ur5e'), time_limit=SOLVE_TIME_LIMIT)
+
+
+@pytest.mark.parametrize(('start', 'goal', 'cause'), [
+    ([np.nan, 0.5, 0.1], Q3_B, r"^start_joints: joint values contain NaN or inf: \[nan, 0\.5, 0\.1\]$"),
+    (Q3_A, [0.1, np.inf, 0.2], r'^goal_joints: joint values contain NaN or inf'),
+    (Q3_A, [0.1, 0.2], r"^goal_joints: robot 'planar_3r' has 3 joints \['joint1', 'joint2', 'joint3'\], got 2 values$"),
+    ([0.0] * 4, Q3_B, r"^start_joints: robot 'planar_3r' has 3 joints .*got 4 values$"),
+    (['a', 'b', 'c'], Q3_B, r'^start_joints: not a numeric joint vector'),
+])
+def test_regression_bad_joints(planar: GeodesicPlanner, start: Any, goal: Any, cause: str) -> None:
+    expect_error('regression', lambda: planar.plan(None, None, start, goal), RequestError, cause)
+
+
+def test_regression_joints_outside_limits(planar: GeodesicPlanner) -> None:
+    expect_error('regression', lambda: planar.plan(None, None, [3.2, 0.5, 0.1], Q3_B), LimitError,
+                 r"^start joints: joint 'joint1' = 3\.2 is outside its limits \[-3\.14159, 3\.14159\]$")
+    expect_error('regression', lambda: planar.plan(None, None, Q3_A, [0.9, -3.5, 0.1]), LimitError,
+                 r"^goal joints: joint 'joint2' = -3\.5 is outside its limits")
+    # Without the limit check the same request is planned (the limits are the only objection).
+    free = GeodesicPlanner(load_robot('planar_3r'), check_limits=False)
+    path = guarded('regression', lambda: free.plan(None, None, [3.2, 0.5, 0.1], [2.9, 0.7, 0.3])).value
+    check_path(free, path, np.array([3.2, 0.5, 0.1]), np.array([2.9, 0.7, 0.3]))
+
+
+@pytest.mark.parametrize(('name', 'build', 'cause'), [(h[0], h[1], h[2]) for h in HOSTILE_POSES])
+def test_regression_bad_pose(planar: GeodesicPlanner, name: str, build: Any, cause: str) -> None:
+    T = planar.robot.fk(np.array(Q3_A))
+    expect_error('regression', lambda: planar.plan(build(T, 0.5), T), RequestError, r'^start pose: .*' + cause)
+    expect_error('regression', lambda: planar.plan(T, build(T, 0.5)), RequestError, r'^goal pose: .*' + cause)
+
+
+@pytest.mark.parametrize(('quat', 'cause'), [
+    ([0.0, 0.0, 0.0, 0.0], r'quaternion is not normalised \(norm 0,'),
+    ([0.0, 0.0, 0.0, 2.0], r'quaternion is not normalised \(norm 2,'),
+    ([0.0, 0.0, 0.6, 0.6], r'quaternion is not normalised \(norm 0\.848528'),
+    ([0.0, 0.0, np.nan, 1.0], r'quaternion contains NaN or inf'),
+    ([0.0, 0.0, 1.0], r'a quaternion needs 4 numbers'),
+])
+def test_regression_bad_quaternion(quat: list[float], cause: str) -> None:
+    expect_error('regression', lambda: pose_to_transform([2.5, 1.5, 0.0], quat, 'goal'), RequestError,
+                 r'^goal\.orientation: ' + cause)
+
+
+def test_regression_quaternion_just_unnormalised_is_normalised() -> None:
+    psi = math.atan2(0.5, 0.866)
+    q = np.array([0.0, 0.0, math.sin(psi / 2), math.cos(psi / 2)]) * (1 + 9e-4)
+    T = guarded('regression', lambda: pose_to_transform([2.5, 1.5, 0.0], q)).value
+    np.testing.assert_allclose(T[:3, :3], [[math.cos(psi), -math.sin(psi), 0], [math.sin(psi), math.cos(psi), 0],
+                                           [0, 0, 1]], atol=1e-15)
+
+
+def test_regression_unreachable_pose(planar: GeodesicPlanner) -> None:
+    """5 m from the base of an arm of reach 3 m: the nearest reachable pose is the stretched arm
+    pointing at it, 2 m away (the orientation matches), so IKError reports residual 2."""
+    T = np.eye(4)
+    T[0, 3] = 5.0
+    err = expect_error('regression', lambda: planar.plan(planar.robot.fk(np.array(Q3_A)), T), IKError,
+                       r"^IK failed for robot 'planar_3r': nearest reachable pose is 2 away \(tolerance 0\.001\); "
+                       r'target position \[5\.0, 0\.0, 0\.0\] m')
+    assert err.residual == pytest.approx(2.0, abs=1e-9)
+    # The RRPP cannot turn its tool about every axis: a nearby pose with another orientation.
+    rrpp = load_robot('rrpp')
+    T_b = rrpp.fk(rrpp.home) @ np.block([[so3_exp(np.array([0.3, 0.0, 0.0])), np.zeros((3, 1))], [0, 0, 0, 1]])
+    expect_error('regression', lambda: GeodesicPlanner(rrpp).plan(rrpp.fk(rrpp.home), T_b), IKError,
+                 r"^IK failed for robot 'rrpp': nearest reachable pose is [0-9.]+ away")
+
+
+def test_regression_start_equals_goal(planar: GeodesicPlanner, ur5e: GeodesicPlanner) -> None:
+    """start == goal: a valid zero-length path that stays put, and a trajectory of duration 0."""
+    for planner, q in ((planar, np.array(Q3_A)), (ur5e, ur5e.robot.home + 0.1)):
+        T = planner.robot.fk(q)
+        for args in ((None, None, q, q), (T, T)):
+            path = guarded('regression', lambda: planner.plan(*args)).value
+            check_path(planner, path, q if args[0] is None else None, q if args[0] is None else None,
+                       args[0], args[1])
+            assert path.length == 0.0
+            qs = path.evaluate(S_CHECK)[0]
+            np.testing.assert_array_equal(qs, np.broadcast_to(path.q_start, qs.shape))
+            traj = path.timed()
+            assert traj.duration == 0.0
+            check_trajectory(path, traj, planner.robot.max_velocity, planner.robot.max_acceleration)
+
+
+@pytest.mark.parametrize(('robot_name', 'q_s', 'end'), [
+    ('planar_3r', [0.3, 0.0, 0.2], 'start'),       # stretched: θ2 = 0
+    ('planar_3r', [0.3, PI, 0.2], 'goal'),         # folded: θ2 = π
+    ('ur5e', [0.1, -1.2, 0.0, -1.0, 0.5, 0.3], 'start'),   # elbow stretched
+    ('ur5e', [0.1, -1.2, 1.0, -1.0, 0.0, 0.3], 'goal'),    # wrist: θ5 = 0
+])
+def test_regression_singular_end(robot_name: str, q_s: list[float], end: str) -> None:
+    robot = load_robot(robot_name)
+    planner = GeodesicPlanner(robot, time_limit=SOLVE_TIME_LIMIT)
+    q_s = np.array(q_s)
+    q_o = q_s + np.where(q_s > 1.0, -0.2, 0.2)
+    args = (q_s, q_o) if end == 'start' else (q_o, q_s)
+    expect_error('regression', lambda: planner.plan(None, None, *args), SingularMetricError,
+                 rf"^metric paper \(wp=1, wo=1\) is singular for robot '{robot_name}' at the {end} q=")
+
+
+def test_regression_near_singular_diverging_solve() -> None:
+    """Found by the fuzzer: both ends near the UR5e elbow singularity (θ3 ≈ 2π). The solve may fail
+    but must say so as a BVPError (it once was a SingularMetricError 'at a point of the path')."""
+    planner = GeodesicPlanner(load_robot('ur5e'), time_limit=SOLVE_TIME_LIMIT)
+    q_a, q_b = [1.45, -1.462, 6.248, 6.042, 2.332, 1.891], [1.638, -1.573, 5.883, 6.264, 2.357, 1.701]
+    out = guarded('regression', lambda: planner.plan(None, None, q_a, q_b))
+    if out.value is not None:
+        check_path(planner, out.value, np.array(q_a), np.array(q_b))
+    else:
+        assert isinstance(out.error, BVPError), out.error
+        assert re.search(r'diverged|did not converge', str(out.error)), out.error
+
+
+def test_regression_position_metric_is_singular() -> None:
+    planner = GeodesicPlanner(load_robot('planar_3r'), metric='position')
+    expect_error('regression', lambda: planner.plan(None, None, Q3_A, Q3_B), SingularMetricError,
+                 r'singular .* at the start .*traditional dp² metric has rank <= 3')
+
+
+def test_regression_time_limit() -> None:
+    """A budget that is already spent when the solver starts: BVPError naming the limit."""
+    planner = GeodesicPlanner(load_robot('planar_3r'), time_limit=1e-9)
+    err = expect_error('regression', lambda: planner.plan(None, None, Q3_A, Q3_B), BVPError,
+                       r"^geodesic solver exceeded its time limit of 1e-09 s for robot 'planar_3r'$")
+    assert err.status == -2
+
+
+@pytest.mark.parametrize(('s', 'cause'), [
+    ([0.5, np.nan], r'^s: contains NaN or inf$'), ([1.5], r'^s: values must lie in \[0, 1\], got \[1\.5, 1\.5\]$'),
+    ([[0.5]], r'^s: expected a 1-D array, got shape \(1, 1\)$'), ([-0.1, 0.2], r'must lie in \[0, 1\]')])
+def test_regression_bad_s(planar: GeodesicPlanner, s: Any, cause: str) -> None:
+    path = planar.plan(None, None, Q3_A, Q3_B)
+    expect_error('regression', lambda: path.evaluate(s), RequestError, cause)
+    expect_error('regression', lambda: path.ee_poses(s), RequestError, cause)
+
+
+def test_regression_bad_time_limits(planar: GeodesicPlanner) -> None:
+    path = planar.plan(None, None, Q3_A, Q3_B)
+    expect_error('regression', lambda: path.timed(max_velocity=[1.0, 0.0, 1.0]), LimitError,
+                 r"^max_velocity for joint 'joint2' must be positive and finite, got (np\.float64\()?0\.0\)? \(requested\)$")
+    expect_error('regression', lambda: path.timed(max_acceleration=np.nan), LimitError,
+                 r"^max_acceleration for joint 'joint1' must be positive and finite, got (np\.float64\()?nan")
+    expect_error('regression', lambda: path.timed(max_velocity=[1.0, 1.0]), LimitError,
+                 r'^max_velocity: expected 1 or 3 values \(one per joint\), got 2$')
+    t_min = path.timed().duration
+    expect_error('regression', lambda: path.timed(duration=0.5 * t_min), LimitError,
+                 rf'^duration {0.5 * t_min:.6g} s is shorter than the minimum {t_min:.6g} s for these limits$')
+    expect_error('regression', lambda: path.timed(duration=-1.0), LimitError, r'duration must be finite and >= 0')
+
+
+def test_regression_missing_or_too_few_ends(planar: GeodesicPlanner) -> None:
+    T = planar.robot.fk(np.array(Q3_A))
+    expect_error('regression', lambda: planar.plan(None, T), RequestError, r'^start: give a start pose or start_joints$')
+    expect_error('regression', lambda: planar.plan(T, None), RequestError, r'^goal: give a goal pose or goal_joints$')
+    expect_error('regression', lambda: planar.plan_through([T]), RequestError,
+                 r'^plan_through: needs at least 2 poses \(start and goal\), got 1$')
+
+
+@pytest.mark.parametrize(('kwargs', 'cause'), [
+    ({'metric': 'dp2'}, r"^metric: unknown metric 'dp2'"), ({'position_weight': np.nan}, r'position_weight must be finite'),
+    ({'epsilon': -1.0}, r'epsilon must be finite and >= 0'), ({'nodes': 2}, r'nodes must be in \[3, max_nodes\]'),
+    ({'time_limit': 0.0}, r'time_limit must be > 0 s or None'),
+    ({'ik_tolerance': np.nan}, r'tolerance must be a positive number'),
+])
+def test_regression_bad_planner_options(kwargs: dict[str, Any], cause: str) -> None:
+    robot = load_robot('planar_3r')
+
+    def make_and_plan() -> Any:  # a few options are only checked when used
+        return GeodesicPlanner(robot, **kwargs).plan(robot.fk(np.array(Q3_A)), robot.fk(np.array(Q3_B)))
+    expect_error('regression', make_and_plan, RequestError, cause)
+
+
+def test_regression_nan_tolerance(planar: GeodesicPlanner) -> None:
+    T_a, T_b = planar.robot.fk(np.array([Q3_A, Q3_B]))
+    expect_error('regression', lambda: planar.plan(T_a, T_b, tolerance=np.nan), RequestError, r'tolerance.*nan')
