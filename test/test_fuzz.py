@@ -149,11 +149,6 @@ def expect_error(category: str, fn: Callable[[], Any], kind: type, cause: str) -
     return out.error
 
 
-#: Known library bugs, each tracked by a strict xfail regression test below: a fuzz example that
-#: trips one is counted under 'known bugs' instead of failing the default run. Drop with the xfail.
-#: timed(): accelerations up to this ratio of the limit (test_regression_timing_overshoot).
-KNOWN_TIMING_OVERSHOOT = 1.10
-
 # ---------------------------------------------------------------------------------------- oracles
 S_CHECK = np.linspace(0.0, 1.0, 81)
 #: Tolerance on the boundary joints, rad or m.
@@ -297,10 +292,7 @@ def check_trajectory(path: Any, traj: Any, vmax: np.ndarray, amax: np.ndarray) -
     assert np.all(np.abs(dq) <= vmax * (1 + 1e-6) + 1e-12), \
         f'velocity limit exceeded: max ratio {np.max(np.abs(dq) / vmax):.6g}'
     ra = float(np.max(np.abs(ddq) / amax))
-    if 1 + 1e-6 < ra <= KNOWN_TIMING_OVERSHOOT:  # BUG tracked by test_regression_timing_overshoot
-        _record('known bugs', 'timed() acceleration overshoot', 0.0)
-    else:
-        assert ra <= 1 + 1e-6, f'acceleration limit exceeded: max ratio {ra:.6g}'
+    assert ra <= 1 + 1e-6, f'acceleration limit exceeded: max ratio {ra:.6g}'
     for k in (0, -1):
         np.testing.assert_allclose(dq[k], 0.0, atol=1e-9, err_msg='not at rest (velocity)')
         np.testing.assert_allclose(ddq[k], 0.0, atol=1e-9, err_msg='not at rest (acceleration)')
@@ -326,7 +318,9 @@ def dh_chains(draw: Any, min_dof: int = 2, max_dof: int = 7) -> Chain:
     n = draw(st.integers(min_dof, max_dof))
     modified = draw(st.booleans())
     kinds = draw(st.lists(st.sampled_from(['revolute', 'revolute', 'prismatic']), min_size=n, max_size=n))
-    twist = st.one_of(st.sampled_from([0.0, PI / 2, -PI / 2, PI]), st.floats(-PI, PI))
+    # Mostly the twists of real arms; all-zero twists make planar chains, whose metric is singular
+    # beyond 3 joints (fine, but they would crowd out the rest).
+    twist = st.one_of(st.sampled_from([PI / 2, -PI / 2, PI / 2, 0.0, PI]), st.floats(-PI, PI))
     rows, lower, upper = [], [], []
     for kind in kinds:
         theta = draw(st.one_of(st.just(0.0), st.floats(-PI, PI)))
@@ -436,7 +430,7 @@ def plan_and_check(category: str, planner: GeodesicPlanner, start: Any, goal: An
 
 
 # ---------------------------------------------------------------------------------------- fuzz tests
-@fuzz(30, robot=robots(), data=st.data())
+@fuzz(60, robot=robots(), data=st.data())
 def _plan_joints(robot: Chain, data: Any) -> None:
     """Random robots, random joint boundary conditions inside the limits."""
     planner = planner_for(data.draw, robot)
@@ -448,7 +442,7 @@ def _plan_joints(robot: Chain, data: Any) -> None:
 test_fuzz_plan_joints, test_fuzz_plan_joints_slow = _plan_joints
 
 
-@fuzz(25, robot=robots(), data=st.data())
+@fuzz(50, robot=robots(), data=st.data())
 def _plan_poses(robot: Chain, data: Any) -> None:
     """Poses: reachable (fk of random joints), perturbed a little or a lot, or far away."""
     planner = GeodesicPlanner(robot, time_limit=SOLVE_TIME_LIMIT)
@@ -564,9 +558,13 @@ QUAT_PART = st.one_of(st.floats(-2.0, 2.0), st.sampled_from([0.0, -0.0, 1.0, np.
                       st.floats(allow_nan=True, allow_infinity=True))
 
 
-@fuzz(60, quat=st.lists(QUAT_PART, min_size=4, max_size=4),
-      position=st.lists(st.one_of(st.floats(-3.0, 3.0), st.sampled_from([np.nan, np.inf])), min_size=3, max_size=3),
-      scale=st.sampled_from([None, 1.0, 1.0 + 5e-4, 1.0 - 5e-4, 1.002, 0.5, 0.0]),
+@fuzz(100, quat=st.one_of(st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4),
+                         st.lists(QUAT_PART, min_size=4, max_size=4)),
+      position=st.one_of(st.lists(st.floats(-3.0, 3.0), min_size=3, max_size=3),
+                         st.lists(st.floats(-3.0, 3.0), min_size=3, max_size=3),
+                         st.lists(st.one_of(st.floats(-3.0, 3.0), st.sampled_from([np.nan, np.inf])),
+                                  min_size=3, max_size=3)),
+      scale=st.sampled_from([None, 1.0, 1.0, 1.0 + 5e-4, 1.0 - 5e-4, 1.002, 0.5, 0.0]),
       robot_name=st.sampled_from(PRESET_NAMES))
 def _quaternions(quat: list[float], position: list[float], scale: float | None, robot_name: str) -> None:
     """pose_to_transform/check_quaternion on any four floats: zero, unnormalised, NaN/inf, huge, tiny.
@@ -630,7 +628,7 @@ SINGULAR = [('planar_3r', _planar_stretched), ('planar_3r', _planar_folded),
             ('ur5e', _ur5e_elbow), ('ur5e', _ur5e_wrist)]
 
 
-@fuzz(25, case=st.sampled_from(SINGULAR), data=st.data())
+@fuzz(40, case=st.sampled_from(SINGULAR), data=st.data())
 def _singular(case: tuple[str, Callable[[float, np.ndarray], np.ndarray]], data: Any) -> None:
     """Starts (or goals) at and near singular configurations: a stretched or folded planar arm, the
     UR5e elbow and wrist singularities; goals given as joints or as poses."""
@@ -653,13 +651,14 @@ def _singular(case: tuple[str, Callable[[float, np.ndarray], np.ndarray]], data:
         if delta == 0.0:  # exactly singular joints: the planner must say so and where
             assert isinstance(out.error, SingularMetricError), \
                 f'singular {singular_end} {q_s.tolist()} gave {out.value or out.error!r}'
-            assert f'singular for robot {name!r} at the {singular_end}' in str(out.error), str(out.error)
+            # The other end may be numerically singular too (a tiny move): then the start is named.
+            assert re.search(rf"singular for robot '{name}' at the (start|goal)", str(out.error)), str(out.error)
 
 
 test_fuzz_singular, test_fuzz_singular_slow = _singular
 
 
-@fuzz(15, robot=robots(), data=st.data())
+@fuzz(25, robot=robots(), data=st.data())
 def _plan_through(robot: Chain, data: Any) -> None:
     """Piecewise geodesics through 2-5 poses (repeated via points included; sometimes a NaN one)."""
     draw = data.draw
@@ -674,8 +673,13 @@ def _plan_through(robot: Chain, data: Any) -> None:
         k = draw(st.integers(1, len(poses) - 1))
         poses[k] = poses[k].copy()
         poses[k][1, 3] = np.nan
-        expect_error('plan_through', lambda: planner.plan_through(poses, qs[0] if with_joints else None),
-                     RequestError, rf'via point {k}: transform contains NaN or inf')
+        out = guarded('plan_through', lambda: planner.plan_through(poses, qs[0] if with_joints else None))
+        if out.error is not None and not isinstance(out.error, RequestError):
+            # BUG tracked by test_regression_plan_through_validates_late: an earlier piece failed first.
+            _record('known bugs', 'plan_through: NaN via point not named (earlier piece failed first)', 0.0)
+            return
+        assert isinstance(out.error, RequestError), f'NaN via point accepted: {out.value}'
+        assert re.search(rf'via point {k}: transform contains NaN or inf', str(out.error)), out.error
         return
     out = guarded('plan_through', lambda: planner.plan_through(poses, qs[0] if with_joints else None))
     if out.value is None:
@@ -823,12 +827,14 @@ def _evaluate(which: str, s: list[Any]) -> None:
 test_fuzz_evaluate, test_fuzz_evaluate_slow = _evaluate
 
 
-ANY_FLOAT = st.one_of(st.floats(-10.0, 10.0), st.sampled_from([0.0, -1.0, np.nan, np.inf, 1e-12, 1e12]))
+ANY_FLOAT = st.one_of(st.floats(0.1, 5.0), st.floats(0.1, 5.0), st.floats(-10.0, 10.0),
+                      st.sampled_from([0.0, -1.0, np.nan, np.inf, 1e-12, 1e12]))
 
 
-@fuzz(40, robot_name=st.sampled_from(PRESET_NAMES), metric=st.sampled_from(['paper', 'position', 'PAPER', '', 'dp2']),
-      wp=ANY_FLOAT, wo=ANY_FLOAT, eps=st.one_of(st.none(), ANY_FLOAT), nodes=st.integers(-2, 60),
-      max_nodes=st.sampled_from([2, 5, 11, 100, 2000]), tol=st.one_of(st.floats(1e-9, 1e-2), ANY_FLOAT),
+@fuzz(60, robot_name=st.sampled_from(PRESET_NAMES),
+      metric=st.one_of(st.just('paper'), st.sampled_from(['paper', 'position', 'PAPER', '', 'dp2'])),
+      wp=ANY_FLOAT, wo=ANY_FLOAT, eps=st.one_of(st.none(), st.none(), ANY_FLOAT),
+      nodes=st.one_of(st.integers(3, 40), st.integers(-2, 60)), max_nodes=st.one_of(st.just(2000), st.sampled_from([2, 5, 100, 2000])), tol=st.one_of(st.floats(1e-9, 1e-2), ANY_FLOAT),
       time_limit=st.one_of(st.none(), st.sampled_from([0.0, -1.0, np.nan, 1e-9, 0.5, 2.0])))
 def _planner_options(robot_name: str, metric: str, wp: float, wo: float, eps: float | None, nodes: int,
                      max_nodes: int, tol: float, time_limit: float | None) -> None:
@@ -861,7 +867,7 @@ def _planner_options(robot_name: str, metric: str, wp: float, wo: float, eps: fl
 test_fuzz_planner_options, test_fuzz_planner_options_slow = _planner_options
 
 
-@fuzz(25, robot=robots(), data=st.data())
+@fuzz(40, robot=robots(), data=st.data())
 def _solve_ik(robot: Chain, data: Any) -> None:
     """solve_ik on reachable, nudged and far targets with valid, hostile and missing seeds."""
     from geodesic_planner.ik import solve_ik
@@ -1147,10 +1153,10 @@ def test_regression_nan_tolerance(planar: GeodesicPlanner) -> None:
 
 # ---------------------------------------------------------------------------------------- known bugs
 # Found by the fuzzer; strict xfail until the library is fixed (then they XPASS: drop the mark, and
-# the matching tolerance in the fuzz checks above).
-@pytest.mark.xfail(strict=True, reason='BUG: timed() exceeds the acceleration limit by 2.6 % (panda); '
-                   'the dense limit check uses interpolated path derivatives, not the path')
+# the matching guarded_known / 'known bugs' handling in the fuzz tests above).
 def test_regression_timing_overshoot() -> None:
+    """Found by the fuzzer: timed() once exceeded the acceleration limit by 2.6 % on this panda
+    geodesic (its limit check used interpolated path derivatives). Checked here on the exact path."""
     robot = load_robot('panda')
     q_a = [0.6647, -0.6792, 2.0275, -1.3748, 2.4197, 1.5174, 0.0113]
     q_b = [1.4129, 0.4855, 0.7249, -1.6125, 1.3656, 2.5324, 2.6255]
@@ -1209,3 +1215,16 @@ def test_regression_chain_from_dh_bad_arguments(kwargs: dict[str, Any], cause: s
                    reason="BUG: load_robot('a\\x00b.urdf') lets open()'s bare ValueError (embedded null byte) out")
 def test_regression_load_robot_nul() -> None:
     expect_error('regression', lambda: load_robot('a\x00b.urdf'), RequestError, r'cannot read URDF')
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason='BUG: plan_through checks via point i only after solving the pieces before it: a '
+                   'NaN via point is reported as whatever failed first (here the singular start), and a '
+                   'malformed request costs full solves before it is rejected')
+def test_regression_plan_through_validates_late(planar: GeodesicPlanner) -> None:
+    robot = planar.robot
+    T_s, T_1 = robot.fk(np.array([[0.3, 0.0, 0.2], [0.5, 0.4, 0.2]]))   # start stretched: singular
+    T_bad = T_1.copy()
+    T_bad[0, 3] = np.nan
+    expect_error('regression', lambda: planar.plan_through([T_s, T_1, T_bad]), RequestError,
+                 r'^via point 2: transform contains NaN or inf$')
