@@ -527,7 +527,7 @@ def test_real_node_serves_and_exits_cleanly_on_sigint(tmp_path: Path) -> None:
 def test_demo_paper_poses_match_the_paper() -> None:
     from numpy.testing import assert_allclose
 
-    from geodesic_planner.demo import paper_poses
+    from geodesic_planner.ros.demo import paper_poses
 
     start, goal = paper_poses()
     assert_allclose(start[:3, 3], [2.5, 1.5, 0.0], atol=0)
@@ -541,7 +541,7 @@ def test_demo_paper_poses_match_the_paper() -> None:
 
 
 def test_demo_segment_deviation_exact() -> None:
-    from geodesic_planner.demo import segment_deviation
+    from geodesic_planner.ros.demo import segment_deviation
 
     a, b = np.array([0.0, 0.0, 0.0]), np.array([2.0, 0.0, 0.0])
     pts = np.array([[1.0, 0.0, 0.0], [1.0, 3.0, 4.0], [-3.0, 4.0, 0.0], [5.0, 0.0, 4.0]])
@@ -551,7 +551,7 @@ def test_demo_segment_deviation_exact() -> None:
 
 def test_demo_trajectory_summary_on_known_motion() -> None:
     from geodesic_planner import load_robot
-    from geodesic_planner.demo import trajectory_summary
+    from geodesic_planner.ros.demo import trajectory_summary
 
     robot = load_robot('planar_3r')
     t = np.linspace(0.0, 2.0, 5)
@@ -572,7 +572,7 @@ def test_demo_trajectory_summary_on_known_motion() -> None:
 def test_demo_end_to_end(tmp_path: Path) -> None:
     """The main job as the README runs it (inside the namespace): both nodes, bag, summary, plot."""
     out = tmp_path / 'demo'
-    result = _run([sys.executable, '-m', 'geodesic_planner.demo', '--output', str(out)], timeout=240)
+    result = _run([sys.executable, '-m', 'geodesic_planner.ros.demo', '--output', str(out)], timeout=240)
     assert result.returncode == 0, result.stdout + result.stderr
     for line in ('starting planner node', 'starting trajectory processor node', 'planner ready',
                  'stopping the processor', 'bag read back'):

@@ -1,6 +1,6 @@
 """The main job: the paper's example through both ROS nodes, recorded, summarised and plotted.
 
-``python -m geodesic_planner.demo [--output DIR] [--robot planar_3r] [--timeout S]``
+``python -m geodesic_planner.ros.demo [--output DIR] [--robot planar_3r] [--timeout S]``
 (normally through ``bash scripts/demo.sh``, which sets up the venv and the loopback-only network
 namespace). Steps:
 
@@ -18,9 +18,8 @@ namespace). Steps:
 
 A node that dies or a wait that times out prints the node's log tail and exits with 1.
 
-This module is the package's entry point for the whole pipeline; unlike the rest of the library
-it talks to ROS, so it imports rclpy (and the ROS layer) lazily, inside :func:`run_demo`:
-``import geodesic_planner.demo`` stays ROS-free.
+It is a ROS client, so it lives in ``geodesic_planner/ros/``; rclpy is imported inside
+:func:`run_demo`, so its pure helpers can be imported and tested without ROS.
 """
 from __future__ import annotations
 
@@ -42,8 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from . import netns
-from .errors import GeodesicPlannerError
+from .. import netns
+from ..errors import GeodesicPlannerError
 
 __all__ = ['DemoError', 'NodeProcess', 'main', 'paper_poses', 'run_demo', 'segment_deviation',
            'trajectory_summary']
@@ -277,7 +276,7 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
         DemoError: a node died, a wait timed out, or a result is missing/invalid.
         GeodesicPlannerError: bad robot name, unreadable bag.
     """
-    from .robots import load_robot
+    from ..robots import load_robot
 
     robot = load_robot(robot_name)
     start_T, goal_T = demo_poses(robot)
@@ -291,7 +290,7 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from trajectory_msgs.msg import JointTrajectory
 
-    from .ros.conversions import joint_trajectory_to_arrays, matrix_to_pose_stamped
+    from .conversions import joint_trajectory_to_arrays, matrix_to_pose_stamped
 
     nodes: list[NodeProcess] = []
     context = Context()
@@ -403,7 +402,7 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
 
 def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # noqa: ANN401
                goal_T: np.ndarray, latency_ms: float, say: Callable[[str], None]) -> dict[str, Any]:
-    from .bag import read_trajectories
+    from ..bag import read_trajectories
 
     records = read_trajectories(bag_dir)
     by_topic: dict[str, Any] = {}
@@ -456,9 +455,9 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m geodesic_planner.demo``: returns the exit code (0 ok, 1 error)."""
+    """``python -m geodesic_planner.ros.demo``: returns the exit code (0 ok, 1 error)."""
     parser = argparse.ArgumentParser(
-        prog='python -m geodesic_planner.demo',
+        prog='python -m geodesic_planner.ros.demo',
         description='Plan the paper\'s example through the planner and processor nodes, record a '
                     'bag, print a summary and write summary.json and trajectory.png.')
     parser.add_argument('--output', default='out/demo', help='output directory (default out/demo)')
