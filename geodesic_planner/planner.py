@@ -277,16 +277,19 @@ class GeodesicPlanner:
         if len(poses) < 2:
             raise RequestError(f'plan_through: needs at least 2 poses (start and goal), got {len(poses)}')
         t0 = time.perf_counter()
+        # Validate every via point before solving anything, so a bad one is named as such.
+        targets = [None if (i == 0 and T is None) else check_transform(T, f'via point {i}')
+                   for i, T in enumerate(poses)]
         if start_joints is not None:
             q_prev, ik_a = self.robot.check_joints(start_joints, 'start_joints'), None
         else:
             if poses[0] is None:
                 raise RequestError('plan_through: give the first pose or start_joints')
-            ik_a = self._ik(check_transform(poses[0], 'via point 0'), None, tolerance)
+            ik_a = self._ik(targets[0], None, tolerance)
             q_prev = ik_a.q
         pieces = []
-        for i, T in enumerate(poses[1:], start=1):
-            ik_b = self._goal_ik(check_transform(T, f'via point {i}'), q_prev, tolerance)
+        for i, T in enumerate(targets[1:], start=1):
+            ik_b = self._goal_ik(T, q_prev, tolerance)
             pieces.append(self._solve(q_prev, ik_b.q, ik_a if i == 1 else None, ik_b, time.perf_counter()))
             q_prev = ik_b.q
         return PiecewiseGeodesicPath(pieces, (time.perf_counter() - t0) * 1e3)
