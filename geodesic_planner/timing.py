@@ -3,9 +3,11 @@
 The paper (Lemma 2) notes that a geodesic's speed is set by rescaling its parameter. This module
 turns that into a practical time law ``s(t)`` for any path ``q(s)``, ``s`` in [0, 1]:
 
-1. **Sampling**: the path is evaluated once, on a uniform grid of s plus its breakpoints
+1. **Sampling**: the path is evaluated on a uniform grid of s plus its breakpoints
    (``path.breakpoints``, optional; one-sided derivatives are read there). Between the nodes, q'
-   and q'' are cubic-Hermite interpolated from the exact q', q'', q''' at the nodes.
+   and q'' are cubic-Hermite interpolated from the exact q', q'', q''' at the nodes; steps where
+   two independent interpolants disagree (a sharp feature of the path) are bisected with further
+   exact evaluations until they agree.
 2. **Time-optimal profile** (TOPP-RA-like, Pham & Pham 2018): the squared path speed
    ``x = sdot^2`` is computed by a backward pass (largest ``x`` from which the end can still be
    reached at rest) and a greedy forward pass (largest admissible ``sddot``), subject to
@@ -23,7 +25,8 @@ turns that into a practical time law ``s(t)`` for any path ``q(s)``, ``s`` in [0
 4. **Guarantee**: the law is checked on a dense time grid against the full limits; if smoothing
    pushed any joint over a limit, time is stretched uniformly (``t -> lambda t`` divides
    velocities by ``lambda`` and accelerations by ``lambda^2``) until every sample is within
-   ``1 - CHECK_MARGIN`` of the limits. :attr:`Trajectory.optimality_ratio` reports
+   ``1 - CHECK_MARGIN`` of the limits; the samples nearest a limit are re-checked with the
+   path's exact derivatives. :attr:`Trajectory.optimality_ratio` reports
    ``min_duration / topp_duration`` (about ``1 + smoothing``).
 5. ``duration=`` stretches the law uniformly to exactly that duration (never shorter than the
    minimum, which the error names).
@@ -143,6 +146,8 @@ _LEFT_EPS = 1e-12
 CORNER_TOLERANCE = 1e-5
 #: Fewest TOPP steps on a piece between two breakpoints.
 MIN_PIECE_STEPS = 8
+#: Samples of the dense check (those nearest a limit) re-verified with exact path derivatives.
+EXACT_CHECKS = 32
 
 
 def _sample_path(path: Any, grid_points: int) -> _PathSamples:
@@ -181,6 +186,61 @@ def _sample_path(path: Any, grid_points: int) -> _PathSamples:
         jump = np.abs(aL[idx] - aR[idx]).max(axis=1)
         stop[idx] = jump > CORNER_TOLERANCE * np.maximum(scale, 1e-300)
     return _PathSamples(nodes, aL, aR, bL, bR, cL, cR, stop)
+
+
+def _merge_samples(ps: _PathSamples, s_new: np.ndarray, a: np.ndarray, b: np.ndarray,
+                   c: np.ndarray) -> _PathSamples:
+    """Insert exact samples at new (non-breakpoint) nodes."""
+    s_all = np.concatenate([ps.s, s_new])
+    order = np.argsort(s_all, kind='stable')
+
+    def cat(old: np.ndarray, new: np.ndarray) -> np.ndarray:
+        return np.concatenate([old, new])[order]
+
+    return _PathSamples(s_all[order], cat(ps.aL, a), cat(ps.aR, a), cat(ps.bL, b), cat(ps.bR, b),
+                        cat(ps.cL, c), cat(ps.cR, c), cat(ps.stop, np.zeros(s_new.size, dtype=bool)))
+
+
+def _interpolation_suspects(ps: _PathSamples, tol: float) -> np.ndarray:
+    """Steps whose cubic-Hermite interpolation of q' or q'' is not trustworthy, (n,) bool.
+
+    On each step two independent mid-point estimates are compared: q'(mid) from the Hermite of
+    q' (slopes q'') and from integrating the Hermite of q'' (slopes q'''); q''(mid) from the
+    Hermite of q'' and from integrating q''' interpolated linearly. For a smooth path they agree to
+    O(h^4 q^(5)) and O(h^3 q^(5)); a disagreement above ``tol`` times the joint's scale flags the
+    step. Nothing is divided by h, so slightly inconsistent derivative data (a collocation
+    solution) does not make the indicator grow under refinement.
+    """
+    h = np.diff(ps.s)[:, None]
+    a0, a1, b0, b1 = ps.aR[:-1], ps.aL[1:], ps.bR[:-1], ps.bL[1:]
+    c0, c1 = ps.cR[:-1], ps.cL[1:]
+    a_mid_1 = 0.5 * (a0 + a1) + h * (b0 - b1) / 8.0
+    a_mid_2 = a0 + h * (13.0 / 32.0 * b0 + 11.0 / 192.0 * h * c0 + 3.0 / 32.0 * b1 - 5.0 / 192.0 * h * c1)
+    b_mid_1 = 0.5 * (b0 + b1) + h * (c0 - c1) / 8.0
+    b_mid_2 = b0 + h * (3.0 * c0 + c1) / 8.0
+    scale_a = np.maximum(np.abs(ps.aR).max(axis=0), np.abs(ps.aL).max(axis=0))
+    scale_b = np.maximum(np.abs(ps.bR).max(axis=0), np.abs(ps.bL).max(axis=0)) + scale_a
+    tiny = 1e-300
+    bad = ((np.abs(a_mid_1 - a_mid_2) > tol * (scale_a + tiny))
+           | (np.abs(b_mid_1 - b_mid_2) > tol * (scale_b + tiny)))
+    return bad.any(axis=1)
+
+
+def _refine_adaptively(path: Any, ps: _PathSamples, tol: float = 1e-5, max_rounds: int = 12,
+                       max_nodes: int = 2000) -> _PathSamples:
+    """Bisect the steps where interpolation is not trustworthy, with exact path evaluations."""
+    for _ in range(max_rounds):
+        bad = _interpolation_suspects(ps, tol)
+        bad &= np.diff(ps.s) > 1e-7
+        if not np.any(bad) or ps.s.size >= max_nodes:
+            break
+        idx = np.flatnonzero(bad)[: max_nodes - ps.s.size]
+        s_new = 0.5 * (ps.s[idx] + ps.s[idx + 1])
+        _, a, b, c = (np.asarray(v, dtype=float) for v in path.evaluate(s_new))
+        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(c))):
+            raise LimitError('path derivatives contain NaN or inf')
+        ps = _merge_samples(ps, s_new, a, b, c)
+    return ps
 
 
 def _topp(ps: _PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
@@ -578,7 +638,7 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
             raise LimitError(f'duration must be a number, got {duration!r}') from err
         if not (math.isfinite(duration) and duration >= 0.0):
             raise LimitError(f'duration must be finite and >= 0, got {duration!r}')
-    ps = _sample_path(path, grid_points)
+    ps = _refine_adaptively(path, _sample_path(path, grid_points))
     dof = ps.aR.shape[1]
     joint_names = [str(n) for n in getattr(path, 'joint_names', [])]
     if len(joint_names) != dof:
@@ -607,8 +667,16 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
     t_chk = np.union1d(t_chk, law.t_offsets)
     s, sd, sdd, _ = law.evaluate(t_chk)
     a, b = ps.interpolate(s)
-    rv = float(np.max(np.abs(a * sd[:, None]) / vmax))
-    ra = float(np.max(np.abs(a * sdd[:, None] + b * (sd**2)[:, None]) / amax))
+    rv_t = np.max(np.abs(a * sd[:, None]) / vmax, axis=1)
+    ra_t = np.max(np.abs(a * sdd[:, None] + b * (sd**2)[:, None]) / amax, axis=1)
+    rv, ra = float(rv_t.max()), float(ra_t.max())
+    # The samples closest to a limit are verified with the exact path derivatives.
+    need = np.maximum(rv_t, np.sqrt(ra_t))
+    k = max(1, min(EXACT_CHECKS, need.size))
+    top = np.argpartition(need, -k)[-k:]
+    _, a_x, b_x, _ = (np.asarray(v, dtype=float) for v in path.evaluate(s[top]))
+    rv = max(rv, float(np.max(np.abs(a_x * sd[top, None]) / vmax)))
+    ra = max(ra, float(np.max(np.abs(a_x * sdd[top, None] + b_x * (sd[top] ** 2)[:, None]) / amax)))
     # At breakpoints q'' (or q') may jump: check both one-sided values at the exact crossing time.
     # (Rests at corners need no check: sdot = sddot = 0 there.)
     inner = np.flatnonzero(((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1)) & ~ps.stop)
