@@ -55,7 +55,7 @@ PRESET_NAMES = ('planar_3r', 'rrpp', 'ur5e', 'panda')
 #: What a message must mention for each exception type (the cause, in words).
 CAUSES: dict[type, str] = {
     RequestError: r'NaN|inf|expected|got|normalis|quaternion|rotation|shape|joints|last row|must|'
-                  r'unknown|give|values|both 0|metric|nodes|time_limit|tolerance|not a numeric',
+                  r'unknown|give|values|both 0|metric|nodes|time_limit|tolerance|not a numeric|cannot read',
     IKError: r'IK failed.*(nearest reachable pose|outside joint limits)',
     SingularMetricError: r'singular',
     BVPError: r'did not converge|diverged|time limit|solver failed',
@@ -272,6 +272,8 @@ def check_path(planner: GeodesicPlanner, path: Any, q_a: np.ndarray | None, q_b:
         assert np.all(robot.within_limits(q, 1e-6)), 'path leaves the joint limits between mesh nodes'
     poses = path.ee_poses(S_CHECK)
     assert np.all(np.isfinite(poses))
+    if planner.tol > 1e-4:  # the user asked for a coarse solve: only the above is promised
+        return
     pieces = getattr(path, 'pieces', [path])
     for i, piece in enumerate(pieces):
         check_geodesic_piece(planner, piece, f'piece {i}')
@@ -564,7 +566,7 @@ QUAT_PART = st.one_of(st.floats(-2.0, 2.0), st.sampled_from([0.0, -0.0, 1.0, np.
                          st.lists(st.floats(-3.0, 3.0), min_size=3, max_size=3),
                          st.lists(st.one_of(st.floats(-3.0, 3.0), st.sampled_from([np.nan, np.inf])),
                                   min_size=3, max_size=3)),
-      scale=st.sampled_from([None, 1.0, 1.0, 1.0 + 5e-4, 1.0 - 5e-4, 1.002, 0.5, 0.0]),
+      scale=st.one_of(st.just(1.0), st.sampled_from([None, 1.0 + 5e-4, 1.0 - 5e-4, 1.002, 0.5, 0.0])),
       robot_name=st.sampled_from(PRESET_NAMES))
 def _quaternions(quat: list[float], position: list[float], scale: float | None, robot_name: str) -> None:
     """pose_to_transform/check_quaternion on any four floats: zero, unnormalised, NaN/inf, huge, tiny.
@@ -600,7 +602,10 @@ def _quaternions(quat: list[float], position: list[float], scale: float | None, 
     np.testing.assert_allclose(check_quaternion(q), q / nrm, rtol=0, atol=1e-15)
     robot = load_robot(robot_name)
     planner = GeodesicPlanner(robot, time_limit=SOLVE_TIME_LIMIT)
-    plan_and_check('quaternion.plan', planner, robot.fk(robot.home), T, timed=False)
+    T_home = robot.fk(robot.home)
+    T = T.copy()
+    T[:3, 3] = T_home[:3, 3] + 0.05 * T[:3, 3]   # near the home position: often reachable
+    plan_and_check('quaternion.plan', planner, T_home, T, timed=False)
 
 
 test_fuzz_quaternions, test_fuzz_quaternions_slow = _quaternions
