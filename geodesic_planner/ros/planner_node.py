@@ -48,7 +48,9 @@ fails as "planner busy" after at most ``plan_timeout`` s).
 """
 from __future__ import annotations
 
+import faulthandler
 import math
+import signal
 import threading
 import time
 from collections.abc import Sequence
@@ -547,6 +549,7 @@ def main(args: list[str] | None = None) -> int:
         0 after a signal (also one that arrives while starting), 1 when the parameters or the
         robot model are invalid at start (one error line, no traceback).
     """
+    faulthandler.register(signal.SIGUSR1, all_threads=True)   # `kill -USR1 pid`: dump stacks
     rclpy.init(args=args)
     node = None
     try:
