@@ -354,7 +354,8 @@ def robots() -> Any:
 def box(robot: Chain) -> tuple[np.ndarray, np.ndarray]:
     """Finite sampling box of the joints: the limits, or ±π (rad) / ±1 (m) where infinite."""
     span = np.where(np.array(robot.joint_types) == 'revolute', PI, 1.0)
-    return np.where(np.isfinite(robot.lower), robot.lower, -span), np.where(np.isfinite(robot.upper), robot.upper, span)
+    return (np.where(np.isfinite(robot.lower), robot.lower, -span),
+            np.where(np.isfinite(robot.upper), robot.upper, span))
 
 
 def joints_in(draw: Any, robot: Chain) -> np.ndarray:
@@ -516,6 +517,9 @@ def _hostile_joints(robot: Chain, data: Any) -> None:
 test_fuzz_hostile_joints, test_fuzz_hostile_joints_slow = _hostile_joints
 
 
+_CELL = np.arange(16).reshape(4, 4)   # index of each entry of a 4x4 matrix
+
+
 def _skew(T: np.ndarray, k: float) -> np.ndarray:
     T = T.copy()
     T[0, 1] += k
@@ -524,13 +528,12 @@ def _skew(T: np.ndarray, k: float) -> np.ndarray:
 
 #: Hostile 4x4 transforms: (name, builder(T, x) -> value, cause regex); all RequestError.
 HOSTILE_POSES: list[tuple[str, Callable[[np.ndarray, float], Any], str]] = [
-    ('nan', lambda T, x: np.where(np.eye(4) * 0 + (np.arange(16).reshape(4, 4) == 5), np.nan, T), r'NaN or inf'),
-    ('inf position', lambda T, x: np.where(np.arange(16).reshape(4, 4) == 3, np.inf, T), r'NaN or inf'),
+    ('nan', lambda T, x: np.where(_CELL == 5, np.nan, T), r'NaN or inf'),
+    ('inf position', lambda T, x: np.where(_CELL == 3, np.inf, T), r'NaN or inf'),
     ('scaled rotation', lambda T, x: np.diag([1 + x, 1 + x, 1 + x, 1.0]) @ T, r'not a proper rotation'),
     ('reflection', lambda T, x: np.diag([1.0, 1.0, -1.0, 1.0]) @ T, r'not a proper rotation'),
     ('shear', lambda T, x: _skew(T, x), r'not a proper rotation'),
-    ('zero rotation', lambda T, x: np.where(np.arange(16).reshape(4, 4) % 4 < 3, 0.0, T) + np.diag([0, 0, 0, 0.0]),
-     r'not a proper rotation'),
+    ('zero rotation', lambda T, x: np.where((_CELL % 4 < 3) & (_CELL < 12), 0.0, T), r'not a proper rotation'),
     ('bad last row', lambda T, x: T + np.outer([0, 0, 0, 1.0], [x, 0, 0, 0]), r'last row'),
     ('3x3', lambda T, x: T[:3, :3], r'expected a 4x4.*shape \(3, 3\)'),
     ('flat', lambda T, x: T.reshape(-1), r'expected a 4x4.*shape \(16,\)'),
@@ -839,7 +842,9 @@ ANY_FLOAT = st.one_of(st.floats(0.1, 5.0), st.floats(0.1, 5.0), st.floats(-10.0,
 @fuzz(60, robot_name=st.sampled_from(PRESET_NAMES),
       metric=st.one_of(st.just('paper'), st.sampled_from(['paper', 'position', 'PAPER', '', 'dp2'])),
       wp=ANY_FLOAT, wo=ANY_FLOAT, eps=st.one_of(st.none(), st.none(), ANY_FLOAT),
-      nodes=st.one_of(st.integers(3, 40), st.integers(-2, 60)), max_nodes=st.one_of(st.just(2000), st.sampled_from([2, 5, 100, 2000])), tol=st.one_of(st.floats(1e-9, 1e-2), ANY_FLOAT),
+      nodes=st.one_of(st.integers(3, 40), st.integers(-2, 60)),
+      max_nodes=st.one_of(st.just(2000), st.sampled_from([2, 5, 100, 2000])),
+      tol=st.one_of(st.floats(1e-9, 1e-2), ANY_FLOAT),
       time_limit=st.one_of(st.none(), st.sampled_from([0.0, -1.0, np.nan, 1e-9, 0.5, 2.0])))
 def _planner_options(robot_name: str, metric: str, wp: float, wo: float, eps: float | None, nodes: int,
                      max_nodes: int, tol: float, time_limit: float | None) -> None:
