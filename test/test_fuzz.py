@@ -681,13 +681,8 @@ def _plan_through(robot: Chain, data: Any) -> None:
         k = draw(st.integers(1, len(poses) - 1))
         poses[k] = poses[k].copy()
         poses[k][1, 3] = np.nan
-        out = guarded('plan_through', lambda: planner.plan_through(poses, qs[0] if with_joints else None))
-        if out.error is not None and not isinstance(out.error, RequestError):
-            # BUG tracked by test_regression_plan_through_validates_late: an earlier piece failed first.
-            _record('known bugs', 'plan_through: NaN via point not named (earlier piece failed first)', 0.0)
-            return
-        assert isinstance(out.error, RequestError), f'NaN via point accepted: {out.value}'
-        assert re.search(rf'via point {k}: transform contains NaN or inf', str(out.error)), out.error
+        expect_error('plan_through', lambda: planner.plan_through(poses, qs[0] if with_joints else None),
+                     RequestError, rf'^via point {k}: transform contains NaN or inf$')
         return
     out = guarded('plan_through', lambda: planner.plan_through(poses, qs[0] if with_joints else None))
     if out.value is None:
@@ -1227,11 +1222,9 @@ def test_regression_load_robot_nul() -> None:
     expect_error('regression', lambda: load_robot('a\x00b.urdf'), RequestError, r'cannot read URDF')
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason='BUG: plan_through checks via point i only after solving the pieces before it: a '
-                   'NaN via point is reported as whatever failed first (here the singular start), and a '
-                   'malformed request costs full solves before it is rejected')
 def test_regression_plan_through_validates_late(planar: GeodesicPlanner) -> None:
+    """Found by the fuzzer: plan_through once checked via point i only after solving the pieces
+    before it, so a NaN via point was reported as whatever failed first (here the singular start)."""
     robot = planar.robot
     T_s, T_1 = robot.fk(np.array([[0.3, 0.0, 0.2], [0.5, 0.4, 0.2]]))   # start stretched: singular
     T_bad = T_1.copy()
