@@ -50,6 +50,44 @@ DEADLINE = 60.0      # s, generous: first plans include imports and caches on a 
 ERROR, WARN, INFO = 40, 30, 20
 
 
+#: frame_id of the harmless GetPlan request that warms up a new client (its error line is ignored)
+WARMUP_FRAME = '__warmup__'
+
+
+def warmup_request(client: Any) -> Any:
+    """A request with no effect for ``client``'s service type (a GetPlan one fails, logged)."""
+    srv = client.srv_type
+    if srv is GetPlan:
+        return GetPlan.Request(goal=pose_3r(*GOAL_3R, frame=WARMUP_FRAME))
+    if srv in (GetParameters, DescribeParameters):
+        return srv.Request(names=[])
+    return srv.Request(parameters=[])            # SetParameters(Atomically): empty, no change
+
+
+def ready(client: Any, watch: list[Any]) -> None:
+    """Wait for the service, then until a harmless request gets its response.
+
+    ``wait_for_service`` only says that the server reads our requests; until the server's
+    response writer has matched our response reader, rmw_fastrtps drops the response ("failed to
+    send response (timeout): client will not receive response"), which happens under load. So
+    a new client is used only after one round trip, retried (the request has no effect).
+    """
+    wait_for_service(client, DEADLINE, watch=watch)
+    req = warmup_request(client)
+
+    def round_trip() -> bool:
+        future = client.call_async(req)
+        try:
+            wait_until(future.done, 3.0, what='warm-up response', watch=watch)
+            return True
+        except AssertionError:
+            client.remove_pending_request(future)
+            return False
+
+    wait_until(round_trip, DEADLINE, what=f'a warm-up round trip on {client.srv_name}',
+               watch=watch)
+
+
 def diagnose(proc: Any) -> str:
     """Thread stacks of a running node (SIGUSR1 -> faulthandler in its log) and of this process."""
     import faulthandler
@@ -101,7 +139,7 @@ class PlannerUnderTest:
                                  QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                                             durability=DurabilityPolicy.TRANSIENT_LOCAL))
         for client in (self.plan_client, self.set_client, self.get_client):
-            wait_for_service(client, DEADLINE, watch=self.watch)
+            ready(client, self.watch)
         wait_until(lambda: self.traj.subscription.get_publisher_count() > 0, DEADLINE,
                    what='trajectory publisher matched', watch=self.watch)
 
@@ -232,10 +270,13 @@ def check_line_phi_3r(arr: cv.TrajectoryArrays, atol: float = 1e-6) -> None:
     assert_allclose(lam[[0, -1]], [0.0, 1.0], atol=atol)
 
 
-def rosout_since(rosout: Collector, k0: int, logger: str, level: int | None = None) -> list[Log]:
-    """/rosout records of ``logger`` (at ``level``) received after the first ``k0``."""
+def rosout_since(rosout: Collector, k0: int, logger: str, level: int | None = None,
+                 warmup: bool = False) -> list[Log]:
+    """/rosout records of ``logger`` (at ``level``) received after the first ``k0``; only the
+    client warm-up lines when ``warmup``, else all but those."""
     msgs = rosout.messages[k0:]
-    return [m for m in msgs if m.name == logger and (level is None or m.level == level)]
+    return [m for m in msgs if m.name == logger and (level is None or m.level == level)
+            and (WARMUP_FRAME in m.msg) == warmup]
 
 
 def wait_log(rosout: Collector, k0: int, logger: str, level: int, text: str) -> Log:
@@ -401,6 +442,12 @@ def _hammer(planar: PlannerUnderTest, helper: Any, rosout: Collector, per_client
     results: list[tuple[int, int, bool]] = []
     errors: list[BaseException] = []
     lock = threading.Lock()
+    k_warm = len(rosout)
+    for client in clients:
+        ready(client, planar.watch)
+    # the warm-up error lines are excluded from the counts below; wait until they are in
+    wait_until(lambda: len(rosout_since(rosout, k_warm, planar.logger, ERROR, warmup=True)) >= 4,
+               DEADLINE, what='warm-up error lines')
     n0, k0 = len(traj), len(rosout)
 
     def run(c: int) -> None:
@@ -418,8 +465,6 @@ def _hammer(planar: PlannerUnderTest, helper: Any, rosout: Collector, per_client
             errors.append(err)
 
     try:
-        for client in clients:
-            wait_for_service(client, DEADLINE, watch=planar.watch)
         threads = [threading.Thread(target=run, args=(c,)) for c in range(4)]
         for t in threads:
             t.start()
@@ -688,7 +733,7 @@ def test_robot_description_with_chain_ends_and_joint_names(start_node: Any, help
     traj = Collector(helper, JointTrajectory, '/kr6/geodesic_planner/joint_trajectory',
                      QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
     try:
-        wait_for_service(client, DEADLINE, watch=[proc])
+        ready(client, [proc])
         wait_until(lambda: traj.subscription.get_publisher_count() > 0, DEADLINE,
                    what='kr6 trajectory publisher', watch=[proc])
         req, T_a, T_b = line_slerp_request(robot, np.array([0.2, -1.2, 1.0, 0.3, 0.8, 0.1]),
@@ -721,7 +766,7 @@ def test_robot_swap_at_runtime(start_node: Any, helper: Any) -> None:
     names = [f'ur_{n}' for n in robot.joint_names]
     try:
         for c in (plan, atomic):
-            wait_for_service(c, DEADLINE, watch=[proc])
+            ready(c, [proc])
         wait_until(lambda: traj.subscription.get_publisher_count() > 0, DEADLINE,
                    what='publisher matched', watch=[proc])
 
@@ -753,7 +798,7 @@ def test_parameters_have_descriptions(planar: PlannerUnderTest, helper: Any) -> 
              'position_weight', 'orientation_weight', 'max_velocity', 'max_acceleration',
              'velocity_scaling', 'sample_period', 'frame_id', 'plan_timeout']
     try:
-        wait_for_service(client, DEADLINE, watch=planar.watch)
+        ready(client, planar.watch)
         resp = call_service(client, DescribeParameters.Request(names=names), DEADLINE)
     finally:
         helper.destroy_client(client)
