@@ -291,8 +291,11 @@ def check_trajectory(path: Any, traj: Any, vmax: np.ndarray, amax: np.ndarray) -
     t = np.linspace(0.0, T, 1501)
     q, dq, ddq = traj.at_time(t)
     assert np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and np.all(np.isfinite(ddq))
-    assert np.all(np.abs(dq) <= vmax * (1 + 1e-6) + 1e-12), \
-        f'velocity limit exceeded: max ratio {np.max(np.abs(dq) / vmax):.6g}'
+    rv = float(np.max(np.abs(dq) / vmax))
+    if 1 + 1e-6 < rv <= 1 + 1e-3:  # BUG tracked by test_regression_timing_velocity_overshoot
+        _record('known bugs', 'timed(): velocity limit exceeded by < 1e-3', 0.0)
+    else:
+        assert rv <= 1 + 1e-6, f'velocity limit exceeded: max ratio {rv:.6g}'
     ra = float(np.max(np.abs(ddq) / amax))
     assert ra <= 1 + 1e-6, f'acceleration limit exceeded: max ratio {ra:.6g}'
     for k in (0, -1):
@@ -300,13 +303,23 @@ def check_trajectory(path: Any, traj: Any, vmax: np.ndarray, amax: np.ndarray) -
         np.testing.assert_allclose(ddq[k], 0.0, atol=1e-9, err_msg='not at rest (acceleration)')
     np.testing.assert_allclose(q[0], path.q_start, atol=1e-9, rtol=0)
     np.testing.assert_allclose(q[-1], path.q_goal, atol=1e-9, rtol=0)
+    if T > 0 and float(np.abs(q - q[0]).max()) < 1e-12:
+        # BUG tracked by test_regression_roundoff_length_path: nothing moves (a path of round-off
+        # length) yet the law lasts ~1 µs with sdot ~ 1e6 and inconsistent derivatives.
+        _record('known bugs', 'timed(): round-off-length path gets a 1 µs law', 0.0)
+        return
     if T > 0:
-        # Velocities are the time derivative of the positions (trapezoid integral of dq).
-        integ = q[0] + np.concatenate([np.zeros((1, q.shape[1])),
-                                       np.cumsum(0.5 * (dq[1:] + dq[:-1]) * np.diff(t)[:, None], axis=0)])
-        span = np.abs(q - q[0]).max() + 1e-9
-        drift = float(np.abs(integ - q).max())
-        assert drift < 1e-3 * span + 1e-9, f'∫ dq dt differs from q by {drift:.3g}'
+        # Velocities and accelerations are the time derivatives of what at_time returns (central
+        # differences at interior times; h small against every ramp of the time law).
+        tc = t[5:-5:15]
+        h = 1e-7 * T
+        qp, dqp, _ = traj.at_time(tc + h)
+        qm, dqm, _ = traj.at_time(tc - h)
+        _, dq_c, ddq_c = traj.at_time(tc)
+        err_v = np.abs((qp - qm) / (2 * h) - dq_c) / vmax
+        err_a = np.abs((dqp - dqm) / (2 * h) - ddq_c) / amax
+        assert err_v.max() < 1e-4, f'dq is not the derivative of q (error {err_v.max():.3g} of the limit)'
+        assert err_a.max() < 1e-3, f'ddq is not the derivative of dq (error {err_a.max():.3g} of the limit)'
 
 
 # ---------------------------------------------------------------------------------------- strategies
@@ -1231,3 +1244,28 @@ def test_regression_plan_through_validates_late(planar: GeodesicPlanner) -> None
     T_bad[0, 3] = np.nan
     expect_error('regression', lambda: planar.plan_through([T_s, T_1, T_bad]), RequestError,
                  r'^via point 2: transform contains NaN or inf$')
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason='BUG: plan(T, T) on the RRPP returns goal joints 1 ulp from the start (length 2e-16), '
+                   'and timed() turns that into a 1.05 µs law with sdot = 1e6 and sddot = 0 (inconsistent), '
+                   'instead of a zero-length path of duration 0 (as for planar_3r and ur5e)')
+def test_regression_roundoff_length_path() -> None:
+    robot = load_robot('rrpp')
+    T = robot.fk(robot.home)
+    path = GeodesicPlanner(robot).plan(T, T)
+    assert path.length == 0.0 or path.timed().duration == 0.0, \
+        f'length {path.length:.3g}, duration {path.timed().duration:.3g} s'
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason='BUG: timed() exceeds a small velocity limit by 2.5e-4 (relative) on a piecewise UR5e '
+                   'path: the limit check between its samples misses the peak')
+def test_regression_timing_velocity_overshoot() -> None:
+    path = sample_path('ur5e.piecewise')
+    vmax = np.array([1.0, 1.0, 1.0, 1.0, 0.0078125, 0.0078125])
+    traj = path.timed(vmax)
+    t = np.linspace(0.0, traj.duration, 200001)
+    dq = traj.at_time(t)[1]
+    ratio = float(np.max(np.abs(dq) / vmax))
+    assert ratio <= 1.0, f'max |dq| / vmax = {ratio:.7f}'
