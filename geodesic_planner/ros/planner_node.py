@@ -9,7 +9,8 @@ Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default)
   (arms with fewer than 6 joints); 0 means the library default. The response ``plan`` holds the
   tool poses at the trajectory's sample times (frame_id = base frame), or no poses on failure.
 * topic ``~/joint_trajectory`` (trajectory_msgs/JointTrajectory), reliable, volatile, depth 10:
-  one message per successful plan, published before the service answers. Volatile on purpose: a
+  one message per successful plan, published as soon as it is validated (before the tool path
+  is built and before the service answers). Volatile on purpose: a
   controller that connects later must not execute an old plan (transient_local would replay it).
 * topic ``~/path_markers`` (visualization_msgs/MarkerArray), reliable, transient_local, depth 1:
   the tool path line strip and start/goal axes of the latest plan (RViz started later sees it).
@@ -33,18 +34,23 @@ For rest-to-rest timing under box limits this is exactly time scaling as joint_t
 applies it (durations / f, velocities * f, accelerations * f**2, same path), sampled every
 ``sample_period`` s with positions, velocities and accelerations at every point.
 
-Executor model (issue 7): a MultiThreadedExecutor with three callback groups. The plan service is
-alone in a MutuallyExclusiveCallbackGroup, so plans are computed one at a time in request order
-and each successful plan is published exactly once, by the callback that computed it, before its
-response is sent. ``/joint_states`` has its own MutuallyExclusiveCallbackGroup, and parameter
-services stay in the node's default group, so state and parameter updates never wait behind a
-plan. Shared state is swapped atomically: the latest joint vector is an immutable tuple, and the
-configuration (robot, planner, limits) is an immutable :class:`PlannerConfig` that a request
-reads once at its start; a parameter change builds a new one (or rejects it with a reason).
-Each plan runs in a worker thread and the service waits at most ``plan_timeout`` s for it; a plan
-that is late is abandoned (its result is discarded, nothing is published) and the request fails.
-A lock keeps the next plan from running beside an abandoned one still in progress (that request
-fails as "planner busy" after at most ``plan_timeout`` s).
+Executor model (issue 7): a MultiThreadedExecutor (4 threads) with three callback groups. The
+plan service is alone in a MutuallyExclusiveCallbackGroup, so plans are computed one at a time in
+request order, and each successful plan is published exactly once, by the request that computed
+it, before its response is sent. ``/joint_states`` has its own MutuallyExclusiveCallbackGroup and
+the parameter services stay in the node's default group, so state and parameter updates never
+wait behind a plan. Shared state is swapped atomically: the latest joint vector is an immutable
+tuple, and the configuration (robot, planner, limits) is an immutable :class:`PlannerConfig` that
+a request reads once at its start; a parameter change builds a new one (or rejects it with a
+reason) under a lock.
+
+Bounded time: each plan runs in a worker thread and the service waits at most ``plan_timeout`` s
+for it. A plan still computing then is abandoned: the request fails, and a lock shared by
+"publish" and "abandon" guarantees that its trajectory is never published. (If the trajectory
+was already out, the request waits for its tool path, which needs no solver, and succeeds.) A
+second lock keeps the next plan from running beside an abandoned one still in progress (that
+request fails as "planner busy" after at most ``plan_timeout`` s). ``kill -USR1 <pid>`` dumps
+every thread's stack to stderr (faulthandler).
 """
 from __future__ import annotations
 
@@ -53,7 +59,7 @@ import math
 import signal
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -169,7 +175,9 @@ class PlanResult:
     duration: float
     solver_iterations: int
     solver_ms: float
-    stage_ms: dict[str, float]     # 'plan' (library), 'timing' (timed + sample), 'messages'
+    #: ms per stage: 'plan' (library), 'timing' (timed + sample), 'trajectory' (message and
+    #: its validation), 'publish' (on_trajectory), 'tool path' (fk, Path and markers)
+    stage_ms: dict[str, float]
 
 
 # --------------------------------------------------------------------------- parameters
@@ -304,8 +312,13 @@ def _tolerance(value: float) -> float | None:
     return tol if tol > 0.0 else None
 
 
+class PlanAbandoned(Exception):
+    """Raised by :func:`compute_plan` when ``on_trajectory`` declines the trajectory."""
+
+
 def compute_plan(config: PlannerConfig, request: GetPlan.Request,
-                 current_q: np.ndarray | None, stamp: Any = None) -> PlanResult:
+                 current_q: np.ndarray | None, stamp: Any = None,
+                 on_trajectory: Callable[[JointTrajectory], bool] | None = None) -> PlanResult:
     """Plan for one GetPlan request (no ROS I/O: messages in, messages out).
 
     Args:
@@ -313,8 +326,12 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
         request: start/goal poses (base frame) and tolerance (m).
         current_q: latest valid joint state in chain order, shape (dof,), or None.
         stamp: builtin_interfaces/Time for the Path header.
+        on_trajectory: called with the validated trajectory before the tool path is built (the
+            node publishes it there, so that a controller gets it as early as possible);
+            returning False abandons the plan.
     Raises:
         GeodesicPlannerError: invalid or unreachable request, solver failure (message names the cause).
+        PlanAbandoned: ``on_trajectory`` returned False.
     """
     goal = cv.pose_stamped_to_matrix(request.goal, config.frame_id, 'goal')
     tolerance = _tolerance(request.tolerance)
@@ -354,12 +371,18 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
     problems = cv.validate_joint_trajectory(msg)
     if problems:
         raise RuntimeError(f'generated trajectory is invalid: {problems[:3]}')
+    t3 = time.perf_counter()
+    if on_trajectory is not None and not on_trajectory(msg):
+        raise PlanAbandoned
+    t4 = time.perf_counter()
     tool = config.robot.fk(q)
     path_msg = cv.poses_to_path(tool, config.frame_id, stamp)
     markers = cv.path_markers(tool, config.frame_id)
-    t3 = time.perf_counter()
+    t5 = time.perf_counter()
     solver = path.solver
-    stages = {'plan': (t1 - t0) * 1e3, 'timing': (t2 - t1) * 1e3, 'messages': (t3 - t2) * 1e3}
+    stages = {'plan': (t1 - t0) * 1e3, 'timing': (t2 - t1) * 1e3,
+              'trajectory': (t3 - t2) * 1e3, 'publish': (t4 - t3) * 1e3,
+              'tool path': (t5 - t4) * 1e3}
     return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
                       int(solver.iterations), float(solver.time_ms), stages)
 
@@ -401,6 +424,7 @@ class GeodesicPlannerNode(Node):
         # the service's callback group); it keeps a new plan from running beside an abandoned
         # (timed-out) one that may still be using the same planner object.
         self._planner_lock = threading.Lock()
+        self._publish_lock = threading.Lock()
 
         self._plan_group = MutuallyExclusiveCallbackGroup()
         self._state_group = MutuallyExclusiveCallbackGroup()
@@ -499,7 +523,17 @@ class GeodesicPlannerNode(Node):
         response.plan = Path(header=Header(frame_id=config.frame_id, stamp=stamp))
         current_q = self.current_joints(config.joint_names)
         box: dict[str, Any] = {}
+        state = {'abandoned': False, 'published': False}
         done = threading.Event()
+
+        def publish(msg: JointTrajectory) -> bool:
+            # Runs in the worker; the lock makes "publish" and "abandon" mutually exclusive.
+            with self._publish_lock:
+                if state['abandoned']:
+                    return False
+                self.trajectory_pub.publish(msg)
+                state['published'] = True
+                return True
 
         def work() -> None:
             try:
@@ -507,7 +541,7 @@ class GeodesicPlannerNode(Node):
                     raise RequestError('planner busy: an earlier request that timed out is '
                                        'still computing')
                 try:
-                    box['result'] = compute_plan(config, request, current_q, stamp)
+                    box['result'] = compute_plan(config, request, current_q, stamp, publish)
                 finally:
                     self._planner_lock.release()
             except BaseException as err:  # noqa: BLE001 - handed to the service callback
@@ -518,20 +552,24 @@ class GeodesicPlannerNode(Node):
         worker = threading.Thread(target=work, name='geodesic_plan', daemon=True)
         worker.start()
         if not done.wait(config.plan_timeout):
-            self._abandoned += 1
-            self.get_logger().error(
-                f'plan failed: timed out after {config.plan_timeout:g} s (plan_timeout); '
-                f'the computation is abandoned and its result discarded ({self._abandoned} so far)')
-            return response
+            with self._publish_lock:
+                state['abandoned'] = not state['published']
+            if state['abandoned']:
+                self._abandoned += 1
+                self.get_logger().error(
+                    f'plan failed: timed out after {config.plan_timeout:g} s (plan_timeout); the '
+                    f'computation is abandoned and its result discarded ({self._abandoned} so far)')
+                return response
+            done.wait()   # the trajectory is out; its tool path follows (bounded, no solver)
         err = box.get('error')
         if isinstance(err, GeodesicPlannerError):
             self.get_logger().error(f'plan failed: {err}')
             return response
         if err is not None:
-            self.get_logger().error(f'internal error: {type(err).__name__}: {err}')
+            after = ' (after publishing the trajectory)' if state['published'] else ''
+            self.get_logger().error(f'internal error{after}: {type(err).__name__}: {err}')
             return response
         result: PlanResult = box['result']
-        self.trajectory_pub.publish(result.trajectory)
         self.marker_pub.publish(result.markers)
         response.plan = result.path
         total_ms = (time.perf_counter() - t0) * 1e3
