@@ -72,6 +72,7 @@ from ..bag import JOINT_STATE, JOINT_TRAJECTORY, STORAGES, BagRecorder, make_typ
 from ..errors import BagError, GeodesicPlannerError, RequestError
 from ..resample import process_trajectory
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory
+from .matching import wait_for_matched_subscriptions
 
 NODE_NAME = 'trajectory_processor'
 DEFAULT_INPUT_TOPIC = '/geodesic_planner/joint_trajectory'
@@ -359,6 +360,7 @@ class TrajectoryProcessorNode(Node):
             return
         out = arrays_to_joint_trajectory(arrays.joint_names, t, q, dq, ddq, frame_id=msg.header.frame_id)
         out.header.stamp = msg.header.stamp
+        wait_for_matched_subscriptions(self, self.output_pub)
         self.output_pub.publish(out)
         self.published += 1
         if self.recorder is not None and self.output_topic in self.recorder.topics:

@@ -1,0 +1,29 @@
+"""Publishing without losing the first message to discovery.
+
+A volatile DDS reader receives only what is published after it has matched the writer, and the
+graph (``count_subscribers``) can show a subscription before the writer has matched it. A node
+that publishes a one-off message (a planned trajectory) therefore waits, briefly and boundedly,
+until every subscription the graph shows on the topic has matched its publisher.
+"""
+from __future__ import annotations
+
+import time
+
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+
+#: Longest wait for discovered subscriptions to match before publishing anyway, s.
+MATCH_TIMEOUT = 1.0
+
+
+def wait_for_matched_subscriptions(node: Node, publisher: Publisher, timeout: float = MATCH_TIMEOUT) -> int:
+    """Wait until the publisher has matched every subscription the graph shows on its topic.
+
+    Returns the number of matched subscriptions (publishing goes ahead after ``timeout`` s).
+    """
+    deadline = time.monotonic() + timeout
+    while True:
+        matched = publisher.get_subscription_count()
+        if matched >= node.count_subscribers(publisher.topic_name) or time.monotonic() >= deadline:
+            return matched
+        time.sleep(0.002)
