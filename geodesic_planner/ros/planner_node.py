@@ -590,6 +590,7 @@ def main(args: list[str] | None = None) -> int:
     faulthandler.register(signal.SIGUSR1, all_threads=True)   # `kill -USR1 pid`: dump stacks
     rclpy.init(args=args)
     node = None
+    executor = None
     try:
         executor = MultiThreadedExecutor(num_threads=4)
         node = GeodesicPlannerNode()
@@ -605,6 +606,8 @@ def main(args: list[str] | None = None) -> int:
             raise
         # SIGINT/SIGTERM shut the context down while entities were being created: clean exit.
     finally:
+        if executor is not None:
+            executor.shutdown(timeout_sec=2.0)   # lets a running callback finish (bounded)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

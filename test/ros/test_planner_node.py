@@ -840,6 +840,47 @@ def test_signal_exits_zero(start_node: Any, helper: Any, sig: signal.Signals) ->
     assert 'Traceback' not in out
 
 
+def test_sigint_while_planning_exits_zero(start_node: Any, helper: Any) -> None:
+    proc = start_node('geodesic_planner_node', '-r', '__ns:=/busy', params={'robot': 'planar_3r'})
+    clients = [helper.create_client(GetPlan, '/busy/geodesic_planner/plan') for _ in range(2)]
+    traj = Collector(helper, JointTrajectory, '/busy/geodesic_planner/joint_trajectory',
+                     QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    stop = threading.Event()
+
+    def hammer(client: Any) -> None:
+        while not stop.is_set():
+            future = client.call_async(paper_request())
+            while not future.done() and not stop.is_set():
+                stop.wait(0.01)
+            if not future.done():
+                client.remove_pending_request(future)
+
+    threads = [threading.Thread(target=hammer, args=(c,)) for c in clients]
+    try:
+        for c in clients:
+            ready(c, [proc])
+        wait_until(lambda: traj.subscription.get_publisher_count() > 0, DEADLINE,
+                   what='publisher matched', watch=[proc])
+        for t in threads:
+            t.start()
+        traj.wait_for(5, DEADLINE, watch=[proc])     # requests keep coming while we signal
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            rc = proc.popen.wait(15.0)
+        except subprocess.TimeoutExpired:
+            raise AssertionError(f'no exit 15 s after SIGINT under load\n{diagnose(proc)}') from None
+    finally:
+        stop.set()
+        for t in threads:
+            t.join(10)
+        for c in clients:
+            helper.destroy_client(c)
+        helper.destroy_subscription(traj.subscription)
+    out = proc.log_text()
+    assert rc == 0, out
+    assert 'Traceback' not in out, out
+
+
 @pytest.mark.parametrize(('params', 'text'), [
     ({'robot': 'no_such_robot'}, "cannot load robot 'no_such_robot'"),
     ({'velocity_scaling': 2.0}, 'velocity_scaling'),
