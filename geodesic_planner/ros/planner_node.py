@@ -10,7 +10,8 @@ Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default)
   tool poses at the trajectory's sample times (frame_id = base frame), or no poses on failure.
 * topic ``~/joint_trajectory`` (trajectory_msgs/JointTrajectory), reliable, volatile, depth 10:
   one message per successful plan, published as soon as it is validated (before the tool path
-  is built and before the service answers). Volatile on purpose: a
+  is built and before the service answers), after at most 1 s for subscriptions that the graph
+  shows but that have not matched yet (a client that subscribes just before calling). Volatile on purpose: a
   controller that connects later must not execute an old plan (transient_local would replay it).
 * topic ``~/path_markers`` (visualization_msgs/MarkerArray), reliable, transient_local, depth 1:
   the tool path line strip and start/goal axes of the latest plan (RViz started later sees it).
@@ -83,6 +84,7 @@ from visualization_msgs.msg import MarkerArray
 from .. import GeodesicPlanner, load_robot
 from ..errors import GeodesicPlannerError, LimitError, RequestError
 from . import conversions as cv
+from .matching import wait_for_matched_subscriptions
 
 NODE_NAME = 'geodesic_planner'
 #: Robot used when neither ``robot`` nor ``robot_description`` is given: the paper's planar 3R arm.
@@ -425,6 +427,7 @@ class GeodesicPlannerNode(Node):
         # (timed-out) one that may still be using the same planner object.
         self._planner_lock = threading.Lock()
         self._publish_lock = threading.Lock()
+        self._unmatched_graph_count: int | None = None
 
         self._plan_group = MutuallyExclusiveCallbackGroup()
         self._state_group = MutuallyExclusiveCallbackGroup()
@@ -516,6 +519,22 @@ class GeodesicPlannerNode(Node):
         return state[0]
 
     # ------------------------------------------------------------------ service
+    def _await_subscriptions(self) -> None:
+        """Before a one-off publish: let subscriptions the graph shows match the writer.
+
+        A volatile reader gets only what is published after it matched, and a subscriber that
+        subscribes just before calling ``~/plan`` may be in the graph but not yet matched. Waits
+        at most MATCH_TIMEOUT (1 s); a mismatch that already timed out (e.g. a subscriber with
+        incompatible QoS) is not waited for again while the graph count stays the same.
+        """
+        pub = self.trajectory_pub
+        graph = self.count_subscribers(pub.topic_name)
+        if pub.get_subscription_count() >= graph or graph == self._unmatched_graph_count:
+            return
+        matched = wait_for_matched_subscriptions(self, pub)
+        graph = self.count_subscribers(pub.topic_name)
+        self._unmatched_graph_count = graph if matched < graph else None
+
     def _on_plan(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
         t0 = time.perf_counter()
         config = self._config
@@ -528,6 +547,7 @@ class GeodesicPlannerNode(Node):
 
         def publish(msg: JointTrajectory) -> bool:
             # Runs in the worker; the lock makes "publish" and "abandon" mutually exclusive.
+            self._await_subscriptions()
             with self._publish_lock:
                 if state['abandoned']:
                     return False

@@ -317,6 +317,25 @@ def test_paper_3r_plan_meets_controller_contract(planar: PlannerUnderTest, rosou
     assert f'plan: {len(arr.t)} points' in log.msg
 
 
+def test_fresh_subscriber_gets_the_trajectory(planar: PlannerUnderTest, helper: Any) -> None:
+    # subscribe and call at once (no wait for matching), as a user script would; a subscriber
+    # with incompatible QoS (transient_local vs our volatile writer) must not get in the way
+    stale = Collector(helper, JointTrajectory, f'{planar.name}/joint_trajectory',
+                      QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                                 durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    fresh = Collector(helper, JointTrajectory, f'{planar.name}/joint_trajectory',
+                      QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    try:
+        for n in (1, 2):
+            assert len(planar.plan(paper_request()).plan.poses) > 0
+            check_controller_contract(fresh.wait_for(n, DEADLINE, watch=planar.watch)[-1],
+                                      ROBOT_3R.joint_names)
+        assert len(stale) == 0
+    finally:
+        helper.destroy_subscription(stale.subscription)
+        helper.destroy_subscription(fresh.subscription)
+
+
 def test_frame_id_base_link_accepted(planar: PlannerUnderTest) -> None:
     n0 = len(planar.traj)
     resp = planar.plan(request(pose_3r(*START_3R, frame='base_link'),
