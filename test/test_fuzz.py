@@ -1218,11 +1218,12 @@ def test_regression_solve_ik_bad_target(target: Any, cause: str) -> None:
 
 
 @pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason='BUG: chain_from_dh lets bare errors out: too few joint_names (IndexError), '
-                   'a 3x3 tool (ValueError), a non-numeric DH entry (ValueError)')
+                   reason='BUG: chain_from_dh lets bare errors out: too few joint_names or lower limits '
+                   '(IndexError), a 3x3 tool, a non-numeric DH entry, 3 velocity limits for 2 joints (ValueError)')
 @pytest.mark.parametrize(('kwargs', 'cause'), [
     ({'joint_names': ['a']}, r'joint names'), ({'tool': np.eye(3)}, r'tool'),
-    ({'rows': [(0.0, 0.0, 'x', 0.0), (0.0, 0.0, 1.0, 0.0)]}, r'DH row 0')])
+    ({'rows': [(0.0, 0.0, 'x', 0.0), (0.0, 0.0, 1.0, 0.0)]}, r'DH row 0'),
+    ({'lower': [0.0], 'upper': [1.0, 1.0]}, r'lower'), ({'max_velocity': [1.0, 1.0, 1.0]}, r'velocity')])
 def test_regression_chain_from_dh_bad_arguments(kwargs: dict[str, Any], cause: str) -> None:
     args = {'rows': [(0.0, 0.0, 1.0, 0.0)] * 2, 'kinds': ['revolute'] * 2, **kwargs}
     rows, kinds = args.pop('rows'), args.pop('kinds')
