@@ -927,12 +927,28 @@ BRANCHING_URDF = """<robot name="branchy">
 """
 
 
-def test_non_serial_urdf_exits_nonzero(start_node: Any, tmp_path: FsPath) -> None:
+FLOATING_URDF = """<robot name="floaty">
+  <link name="base"/><link name="a"/><link name="b"/>
+  <joint name="j1" type="floating"><parent link="base"/><child link="a"/></joint>
+  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint>
+</robot>
+"""
+
+
+@pytest.mark.parametrize(('urdf', 'cause'), [
+    (BRANCHING_URDF, 'cannot load robot_description'),
+    (FLOATING_URDF, "joint 'j1' has unsupported type 'floating'"),
+    ('<robot name="broken"><link', 'not valid XML'),
+], ids=['branching', 'floating_joint', 'bad_xml'])
+def test_unusable_urdf_exits_nonzero(start_node: Any, tmp_path: FsPath, urdf: str,
+                                     cause: str) -> None:
     params = tmp_path / 'params.yaml'
     params.write_text(yaml.safe_dump(
-        {'geodesic_planner': {'ros__parameters': {'robot_description': BRANCHING_URDF}}}))
+        {'geodesic_planner': {'ros__parameters': {'robot_description': urdf}}}))
     proc = start_node('geodesic_planner_node', '--params-file', str(params))
     rc = proc.wait(DEADLINE)
     out = proc.log_text()
     assert rc == 1, out
-    assert 'cannot load robot_description' in out and 'Traceback' not in out, out
+    assert 'cannot start: cannot load robot_description' in out, out
+    assert cause in out and 'Traceback' not in out, out
