@@ -38,7 +38,7 @@ from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 import geodesic_planner  # noqa: E402
 from geodesic_planner import load_robot  # noqa: E402
 from geodesic_planner.ros import conversions as cv  # noqa: E402
-from geodesic_planner.transforms import make_transform, so3_exp, so3_log  # noqa: E402
+from geodesic_planner.transforms import make_transform, pose_error, so3_exp, so3_log  # noqa: E402
 from geodesic_planner.urdf import chain_from_urdf  # noqa: E402
 
 from .launch import (Collector, RclpyRuntime, call_service, popen_node, wait_for_service,  # noqa: E402
@@ -736,6 +736,47 @@ def test_ur5e_line_and_rotation(ur5e: PlannerUnderTest) -> None:
     check_limits(arr, robot.max_velocity, robot.max_acceleration)
     tool = check_line_slerp(robot, arr, T_a, T_b)
     assert_allclose(cv.path_to_matrices(resp.plan), tool, atol=1e-9)
+
+
+def _pose_from_columns(p: tuple, n: tuple, o: tuple, a: tuple) -> PoseStamped:
+    """Paper Table 5 pose (3 printed decimals): nearest rotation of (n o a), as a message."""
+    U, _, Vt = np.linalg.svd(np.array([n, o, a]).T)
+    return cv.matrix_to_pose_stamped(make_transform(p, U @ Vt), '')
+
+
+def test_rrpp_paper_poses_and_tolerance(start_node: Any, helper: Any) -> None:
+    # 4 joints, 6-D poses printed to 3 decimals: reachable only within a tolerance (NOTES.md 3)
+    robot = load_robot('rrpp')
+    A = _pose_from_columns((-0.501, -0.901, -0.699), (0.100, -0.810, 0.577), (-0.102, 0.569, 0.816),
+                           (-0.990, -0.141, -0.026))
+    B = _pose_from_columns((-0.600, -0.800, -0.599), (0.105, -0.810, 0.577), (-0.016, 0.579, 0.815),
+                           (-0.994, -0.095, 0.047))
+    proc = start_node('geodesic_planner_node', '-r', '__ns:=/rrpp', params={'robot': 'rrpp'})
+    client = helper.create_client(GetPlan, '/rrpp/geodesic_planner/plan')
+    traj = Collector(helper, JointTrajectory, '/rrpp/geodesic_planner/joint_trajectory',
+                     QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    try:
+        ready(client, [proc])
+        wait_until(lambda: traj.subscription.get_publisher_count() > 0, DEADLINE,
+                   what='publisher matched', watch=[proc])
+        strict = call_service(client, request(A, B, tolerance=1e-4), DEADLINE, watch=[proc])
+        assert len(strict.plan.poses) == 0
+        wait_until(lambda: 'IK failed' in proc.log_text(), DEADLINE, what='IK error line')
+        resp = call_service(client, request(A, B, tolerance=0.01), DEADLINE, watch=[proc])
+        assert len(resp.plan.poses) > 0
+        msgs = traj.wait_for(1, DEADLINE, watch=[proc])
+        assert len(msgs) == 1                              # the strict request published nothing
+        arr = check_controller_contract(msgs[0], robot.joint_names)
+        check_limits(arr, robot.max_velocity, robot.max_acceleration)
+        # paper Table 6 (signs restored in NOTES.md), printed to 3 decimals
+        assert_allclose(arr.positions[0], [0.123, -1.539, 0.276, -0.640], atol=2e-3)
+        assert_allclose(arr.positions[-1], [0.129, -1.629, 0.239, -0.643], atol=2e-3)
+        dp, dr = pose_error(robot.fk(arr.positions[-1]), cv.pose_to_matrix(B.pose))
+        assert dp < 1e-3 and dr < 1e-3                      # the nearest reachable pose
+    finally:
+        helper.destroy_client(client)
+        helper.destroy_subscription(traj.subscription)
+    assert proc.stop() == 0
 
 
 def test_robot_description_with_chain_ends_and_joint_names(start_node: Any, helper: Any,
