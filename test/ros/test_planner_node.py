@@ -759,6 +759,12 @@ def test_rrpp_paper_poses_and_tolerance(start_node: Any, helper: Any) -> None:
         ready(client, [proc])
         wait_until(lambda: traj.subscription.get_publisher_count() > 0, DEADLINE,
                    what='publisher matched', watch=[proc])
+        # "from the current joint state" before any joint state for this robot: a clear failure
+        from_state = request(PoseStamped(), B)
+        from_state.start.pose.orientation.w = 0.0
+        assert len(call_service(client, from_state, DEADLINE, watch=[proc]).plan.poses) == 0
+        wait_until(lambda: 'no valid /joint_states message with the joints' in proc.log_text(),
+                   DEADLINE, what='no-joint-state error line')
         strict = call_service(client, request(A, B, tolerance=1e-4), DEADLINE, watch=[proc])
         assert len(strict.plan.poses) == 0
         wait_until(lambda: 'IK failed' in proc.log_text(), DEADLINE, what='IK error line')
