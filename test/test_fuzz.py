@@ -303,7 +303,7 @@ def check_trajectory(path: Any, traj: Any, vmax: np.ndarray, amax: np.ndarray) -
         np.testing.assert_allclose(ddq[k], 0.0, atol=1e-9, err_msg='not at rest (acceleration)')
     np.testing.assert_allclose(q[0], path.q_start, atol=1e-9, rtol=0)
     np.testing.assert_allclose(q[-1], path.q_goal, atol=1e-9, rtol=0)
-    if T > 0 and float(np.abs(q - q[0]).max()) < 1e-12:
+    if 0 < T < 1e-3 and float(np.abs(q - q[0]).max()) < 1e-9:
         # BUG tracked by test_regression_roundoff_length_path: nothing moves (a path of round-off
         # length) yet the law lasts ~1 µs with sdot ~ 1e6 and inconsistent derivatives.
         _record('known bugs', 'timed(): round-off-length path gets a 1 µs law', 0.0)
@@ -316,8 +316,11 @@ def check_trajectory(path: Any, traj: Any, vmax: np.ndarray, amax: np.ndarray) -
         qp, dqp, _ = traj.at_time(tc + h)
         qm, dqm, _ = traj.at_time(tc - h)
         _, dq_c, ddq_c = traj.at_time(tc)
-        err_v = np.abs((qp - qm) / (2 * h) - dq_c) / vmax
-        err_a = np.abs((dqp - dqm) / (2 * h) - ddq_c) / amax
+        # Allowed: a small fraction of the limit plus the round-off of the differences.
+        noise_v = 4e-16 * (np.abs(q).max() + 1.0) / (2 * h) / vmax
+        noise_a = 4e-16 * (np.abs(dq).max() + 1.0) / (2 * h) / amax
+        err_v = np.abs((qp - qm) / (2 * h) - dq_c) / vmax - noise_v
+        err_a = np.abs((dqp - dqm) / (2 * h) - ddq_c) / amax - noise_a
         assert err_v.max() < 1e-4, f'dq is not the derivative of q (error {err_v.max():.3g} of the limit)'
         assert err_a.max() < 1e-3, f'ddq is not the derivative of dq (error {err_a.max():.3g} of the limit)'
 
