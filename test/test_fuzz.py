@@ -1251,12 +1251,13 @@ def test_regression_plan_through_validates_late(planar: GeodesicPlanner) -> None
 
 
 @pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason='BUG: plan(T, T) on the RRPP returns goal joints 1 ulp from the start (length 2e-16), '
+                   reason='BUG: plan(T, T) can return goal joints a few ulp from the start (length 1e-16), '
                    'and timed() turns that into a 1.05 µs law with sdot = 1e6 and sddot = 0 (inconsistent), '
-                   'instead of a zero-length path of duration 0 (as for planar_3r and ur5e)')
-def test_regression_roundoff_length_path() -> None:
-    robot = load_robot('rrpp')
-    T = robot.fk(robot.home)
+                   'instead of a zero-length path of duration 0')
+@pytest.mark.parametrize(('robot_name', 'q'), [('rrpp', None), ('ur5e', [0.3, -1.2, 1.0, -1.0, 0.5, 0.3])])
+def test_regression_roundoff_length_path(robot_name: str, q: list[float] | None) -> None:
+    robot = load_robot(robot_name)
+    T = robot.fk(robot.home if q is None else np.array(q))
     path = GeodesicPlanner(robot).plan(T, T)
     assert path.length == 0.0 or path.timed().duration == 0.0, \
         f'length {path.length:.3g}, duration {path.timed().duration:.3g} s'
