@@ -463,7 +463,8 @@ test_fuzz_plan_joints, test_fuzz_plan_joints_slow = _plan_joints
 
 @fuzz(50, robot=robots(), data=st.data())
 def _plan_poses(robot: Chain, data: Any) -> None:
-    """Poses: reachable (fk of random joints), perturbed a little or a lot, or far away."""
+    """Goal poses: reachable (fk of random joints), perturbed a little or a lot, or far away; the
+    start as a pose or as joints (the planner node's usual request)."""
     planner = GeodesicPlanner(robot, time_limit=SOLVE_TIME_LIMIT)
     draw = data.draw
     q_a = joints_in(draw, robot)
@@ -480,7 +481,10 @@ def _plan_poses(robot: Chain, data: Any) -> None:
         T_b[:3, :3] = random_rotation(draw)
         T_b[:3, 3] = np.array(draw(st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3))) + [20.0, 0, 0]
     tolerance = draw(st.sampled_from([None, None, 1e-6, 1e-2, 0.5]))
-    out = plan_and_check('plan.poses', planner, T_a, T_b, tolerance=tolerance)
+    if draw(st.booleans()):  # the node's usual request: current joints to a goal pose
+        out = plan_and_check('plan.poses', planner, None, T_b, q_a=q_a, tolerance=tolerance)
+    else:
+        out = plan_and_check('plan.poses', planner, T_a, T_b, tolerance=tolerance)
     if mode == 'far':
         assert isinstance(out.error, IKError), f'a pose 20 m away was planned: {out.value or out.error!r}'
         assert re.search(r'nearest reachable pose is [0-9.e+]+ away', str(out.error)), str(out.error)
