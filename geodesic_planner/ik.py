@@ -181,7 +181,7 @@ def solve_ik(
         raise RequestError(f'IK tolerance must be a positive number, got {tolerance}')
     else:
         tol = float(tolerance)
-    T_target = np.asarray(T_target, dtype=float)
+    T_target = check_transform(T_target, 'IK target')
     q0 = np.asarray(robot.home if seed is None else robot.check_joints(seed, 'IK seed'), dtype=float)
     preferred = [q0]
     if robot.name == 'planar_3r' and abs(T_target[2, 3]) < 1e-9:

@@ -368,21 +368,43 @@ def chain_from_dh(
     if len(kinds) != n:
         raise KinematicsError(f'robot {name!r}: {n} DH rows but {len(kinds)} joint kinds')
     names = list(joint_names) if joint_names is not None else [f'joint{i + 1}' for i in range(n)]
-    lo = [-np.inf] * n if lower is None else list(lower)
-    hi = [np.inf] * n if upper is None else list(upper)
-    mv = np.broadcast_to(np.asarray(max_velocity, dtype=float), (n,))
-    ma = np.broadcast_to(np.asarray(max_acceleration, dtype=float), (n,))
+    if len(names) != n:
+        raise KinematicsError(f'robot {name!r}: {len(names)} joint names for {n} joints')
+
+    def per_joint(value: object, what: str, default: float) -> np.ndarray:
+        try:
+            arr = np.asarray(default if value is None else value, dtype=float)
+        except (TypeError, ValueError) as err:
+            raise KinematicsError(f'robot {name!r}: {what} need one number or {n} numbers, '
+                                  f'got {value!r}') from err
+        if arr.ndim == 0:
+            return np.full(n, float(arr))
+        if arr.shape != (n,):
+            raise KinematicsError(f'robot {name!r}: {what} need one number or {n} numbers, '
+                                  f'got {arr.size}')
+        return arr.copy()
+
+    lo = per_joint(lower, 'lower limits', -np.inf)
+    hi = per_joint(upper, 'upper limits', np.inf)
+    mv = per_joint(max_velocity, 'velocity limits', DEFAULT_MAX_VELOCITY)
+    ma = per_joint(max_acceleration, 'acceleration limits', DEFAULT_MAX_ACCELERATION)
     fixed = [np.eye(4)]
     joints = []
     for i, (row, kind) in enumerate(zip(rows, kinds)):
-        if len(row) != 4:
-            raise KinematicsError(f'robot {name!r}: DH row {i} needs 4 numbers, got {len(row)}')
+        try:
+            vals = [float(x) for x in row]
+        except (TypeError, ValueError) as err:
+            raise KinematicsError(f'robot {name!r}: DH row {i} must hold 4 numbers, got {row!r}') from err
+        if len(vals) != 4:
+            raise KinematicsError(f'robot {name!r}: DH row {i} needs 4 numbers, got {len(vals)}')
+        if not np.all(np.isfinite(vals)):
+            raise KinematicsError(f'robot {name!r}: DH row {i} contains NaN or inf: {row!r}')
         if modified:
-            alpha, a, d, theta = (float(x) for x in row)
+            alpha, a, d, theta = vals
             before = rot_x(alpha) @ trans(x=a) @ rot_z(theta)
             after = trans(z=d)
         else:
-            theta, d, a, alpha = (float(x) for x in row)
+            theta, d, a, alpha = vals
             before = rot_z(theta)
             after = trans(z=d) @ trans(x=a) @ rot_x(alpha)
         if kind == PRISMATIC:
@@ -396,5 +418,11 @@ def chain_from_dh(
         joints.append(Joint(names[i], kind, np.array([0.0, 0.0, 1.0]), float(lo[i]), float(hi[i]),
                             float(mv[i]), float(ma[i])))
     if tool is not None:
-        fixed[-1] = fixed[-1] @ np.asarray(tool, dtype=float)
+        try:
+            tool_T = np.asarray(tool, dtype=float)
+        except (TypeError, ValueError) as err:
+            raise KinematicsError(f'robot {name!r}: tool must be a 4x4 transform ({err})') from err
+        if tool_T.shape != (4, 4):
+            raise KinematicsError(f'robot {name!r}: tool must be a 4x4 transform, got shape {tool_T.shape}')
+        fixed[-1] = fixed[-1] @ tool_T
     return Chain(name, joints, fixed, base_link=base_link, tip_link=tip_link, home=home)

@@ -23,7 +23,10 @@ def check_s(s: object) -> np.ndarray:
     Raises:
         RequestError: otherwise.
     """
-    arr = np.atleast_1d(np.asarray(s, dtype=float))
+    try:
+        arr = np.atleast_1d(np.asarray(s, dtype=float))
+    except (TypeError, ValueError) as err:
+        raise RequestError(f's: expected a 1-D array of numbers in [0, 1] ({err})') from err
     if arr.ndim != 1:
         raise RequestError(f's: expected a 1-D array, got shape {arr.shape}')
     if not np.all(np.isfinite(arr)):

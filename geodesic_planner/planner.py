@@ -29,6 +29,8 @@ if TYPE_CHECKING:
 #: Default collocation tolerance (solve_bvp's relative residual). On the paper's 3R example and
 #: on ur5e moves it gives tool paths within 1e-8 m of the exact geodesic (benchmarks/run.py).
 DEFAULT_TOL = 1e-5
+#: Boundary joints closer than this (rad or m) are the same configuration (a zero-length path).
+SAME_JOINTS = 1e-12
 #: Joint positions may exceed their limits by this much (round-off), rad or m.
 LIMIT_SLACK = 1e-9
 #: Steps of the line-following goal IK used when the start joints alone do not seed the goal.
@@ -73,8 +75,13 @@ class GeodesicPlanner:
         self.robot = robot
         self.metric = Metric(metric, float(position_weight), float(orientation_weight), float(epsilon))
         self.equations = GeodesicEquations(robot, self.metric)
-        if not 3 <= int(nodes) <= max_nodes:
-            raise RequestError(f'nodes must be in [3, max_nodes], got {nodes}')
+        if not (isinstance(max_nodes, (int, np.integer)) and max_nodes >= 3):
+            raise RequestError(f'max_nodes must be an integer >= 3, got {max_nodes!r}')
+        if not (isinstance(nodes, (int, np.integer)) and 3 <= nodes <= max_nodes):
+            raise RequestError(f'nodes must be in [3, max_nodes] (an integer, max_nodes = {max_nodes}), '
+                               f'got {nodes!r}')
+        if not (isinstance(tol, (int, float, np.floating)) and np.isfinite(tol) and 0 < tol < 1):
+            raise RequestError(f'tol (collocation tolerance) must be a number in (0, 1), got {tol!r}')
         self.nodes = int(nodes)
         self.tol = float(tol)
         self.max_nodes = int(max_nodes)
@@ -133,7 +140,10 @@ class GeodesicPlanner:
             q_b = ik_b.q
         else:
             raise RequestError('goal: give a goal pose or goal_joints')
-        return np.array(q_a, dtype=float), np.array(q_b, dtype=float), ik_a, ik_b
+        q_a, q_b = np.array(q_a, dtype=float), np.array(q_b, dtype=float)
+        if np.abs(q_b - q_a).max() <= SAME_JOINTS:
+            q_b = q_a.copy()   # the same configuration up to round-off: a path of length 0
+        return q_a, q_b, ik_a, ik_b
 
     # ------------------------------------------------------------------ guess
     def initial_guess(self, q_a: np.ndarray, q_b: np.ndarray, s: np.ndarray,

@@ -111,8 +111,9 @@ def load_robot(name_or_path: str, *, base_link: str | None = None, tip_link: str
         try:
             with open(name_or_path, encoding='utf-8') as fh:
                 text = fh.read()
-        except OSError as err:
-            raise RequestError(f'robot: cannot read URDF {name_or_path!r}: {err.strerror}') from err
+        except (OSError, ValueError) as err:
+            why = getattr(err, 'strerror', None) or str(err)
+            raise RequestError(f'robot: cannot read URDF {name_or_path!r}: {why}') from err
         return chain_from_urdf(text, base_link=base_link, tip_link=tip_link)
     raise RequestError(
         f'robot: unknown robot {name_or_path!r}; presets are {sorted(PRESETS)}, or give a .urdf path')
