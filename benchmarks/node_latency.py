@@ -19,6 +19,7 @@ import argparse
 import math
 import os
 import platform
+import re
 import signal
 import subprocess
 import sys
@@ -101,7 +102,7 @@ def start_node(robot: str, ns: str, log_dir: Path) -> subprocess.Popen:
     exe = Path(sysconfig.get_path('scripts')) / 'geodesic_planner_node'
     log = open(log_dir / f'{robot}.log', 'wb')  # noqa: SIM115 - lives as long as the process
     return subprocess.Popen([str(exe), '--ros-args', '-r', f'__ns:={ns}', '-p', f'robot:={robot}',
-                             '--log-level', 'warn'],
+                             '--log-level', 'info'],
                             stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                             process_group=0)
 
@@ -218,6 +219,11 @@ def measure(bench: Bench, robot: str, n_requests: int, warmup: int, per_client: 
             cond.wait_for(lambda: len(arrivals) >= k0 + expected, DEADLINE)
             t_end = arrivals[-1] if len(arrivals) > k0 else time.perf_counter()
         rate = expected / (t_end - t0)
+        log = (log_dir / f'{robot}.log').read_text(errors='replace')
+        waits = [float(x) for x in re.findall(r'waited ([0-9.]+) ms for', log)]
+        if waits or 'subscriptions matched after waiting' in log:
+            print(f'note: {robot}: the node waited for subscription matching {len(waits)} times '
+                  f'(max {max(waits, default=0):.1f} ms)', file=sys.stderr)
         return Result(robot, int(np.median(points)), np.array(traj_ms), np.array(resp_ms),
                       rate, len(load), failures[0])
     finally:

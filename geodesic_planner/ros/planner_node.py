@@ -75,6 +75,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
@@ -530,9 +531,17 @@ class GeodesicPlannerNode(Node):
         graph = self.count_subscribers(pub.topic_name)
         if pub.get_subscription_count() >= graph or graph == self._unmatched_graph_count:
             return
+        t0 = time.monotonic()
         matched = wait_for_matched_subscriptions(self, pub)
+        waited_ms = (time.monotonic() - t0) * 1e3
         graph = self.count_subscribers(pub.topic_name)
         self._unmatched_graph_count = graph if matched < graph else None
+        if matched < graph:
+            self.get_logger().warning(
+                f'publishing with {matched} of {graph} subscriptions matched after waiting '
+                f'{waited_ms:.0f} ms (QoS incompatible or still discovering?)')
+        else:
+            self.get_logger().info(f'waited {waited_ms:.1f} ms for {graph} subscriptions to match')
 
     def _on_plan(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
         t0 = time.perf_counter()
@@ -602,34 +611,45 @@ class GeodesicPlannerNode(Node):
 def main(args: list[str] | None = None) -> int:
     """Console script ``geodesic_planner_node``: spin until SIGINT/SIGTERM.
 
+    Shutdown order: SIGINT/SIGTERM only set a flag (Python handlers; rclpy's own handlers, which
+    shut the context down at once, are not installed); the executor then stops within 0.1 s,
+    running callbacks get up to 2 s to finish, the node's entities are destroyed while the
+    context is still valid, and only then is rclpy shut down.
+
     Returns:
         0 after a signal (also one that arrives while starting), 1 when the parameters or the
         robot model are invalid at start (one error line, no traceback).
     """
+    stop = threading.Event()
+
+    def request_stop(signum: int, _frame: Any) -> None:
+        stop.set()
+
+    previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    faulthandler.enable()                                     # stacks on a fatal signal
     faulthandler.register(signal.SIGUSR1, all_threads=True)   # `kill -USR1 pid`: dump stacks
-    rclpy.init(args=args)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     executor = None
     try:
         executor = MultiThreadedExecutor(num_threads=4)
         node = GeodesicPlannerNode()
         executor.add_node(node)
-        executor.spin()
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ConfigError, ParameterException) as err:
         rclpy.logging.get_logger(NODE_NAME).error(f'cannot start: {err}')
         return 1
-    except Exception:
-        if rclpy.ok():
-            raise
-        # SIGINT/SIGTERM shut the context down while entities were being created: clean exit.
     finally:
         if executor is not None:
             executor.shutdown(timeout_sec=2.0)   # lets a running callback finish (bounded)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return 0
 
 
