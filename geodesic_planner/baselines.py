@@ -22,6 +22,8 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from .errors import IKError, RequestError
+from .ik import check_transform
+from .path import JointPath, check_order, check_s
 from .transforms import line_slerp, so3_log
 
 #: ``ik(robot, T_target (4, 4), seed (dof,)) -> q (dof,)``.
@@ -30,30 +32,6 @@ IKFunction = Callable[[Any, np.ndarray, np.ndarray], np.ndarray]
 #: Default largest accepted IK residual at a via point / sample (weighted embedding distance,
 #: m-equivalent). Arms with fewer than 6 joints follow the nearest reachable pose of the line.
 DEFAULT_VIA_TOLERANCE = 1e-2
-
-
-def _check_s(s: Any) -> np.ndarray:
-    arr = np.atleast_1d(np.asarray(s, dtype=float))
-    if arr.ndim != 1:
-        raise RequestError(f's: expected a 1-D array, got shape {arr.shape}')
-    if not np.all(np.isfinite(arr)):
-        raise RequestError('s: contains NaN or inf')
-    if arr.size and (arr.min() < -1e-12 or arr.max() > 1.0 + 1e-12):
-        raise RequestError(f's: values must lie in [0, 1], got [{arr.min():.6g}, {arr.max():.6g}]')
-    return np.clip(arr, 0.0, 1.0)
-
-
-def _check_T(T: Any, what: str) -> np.ndarray:
-    try:
-        arr = np.asarray(T, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise RequestError(f'{what}: not a numeric 4x4 transform ({err})') from err
-    if arr.shape != (4, 4) or not np.all(np.isfinite(arr)):
-        raise RequestError(f'{what}: expected a finite 4x4 homogeneous transform, got shape {arr.shape}')
-    R = arr[:3, :3]
-    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-        raise RequestError(f'{what}: rotation part is not orthonormal')
-    return arr
 
 
 def _default_ik(tolerance: float) -> IKFunction:
@@ -106,52 +84,21 @@ def line_twist(T_start: np.ndarray, T_goal: np.ndarray) -> np.ndarray:
     return np.concatenate([v, w])
 
 
-class _SplinePath:
-    """Shared behaviour of the baseline paths (contract of a geodesic path)."""
+class _SplinePath(JointPath):
+    """Shared behaviour of the baseline paths: a scipy piecewise polynomial q(s) per joint."""
 
-    robot: Any
     _spline: Any
 
-    @property
-    def joint_names(self) -> list[str]:
-        """Joint names in the robot's order."""
-        return list(self.robot.joint_names)
-
-    @property
-    def dof(self) -> int:
-        """Number of joints."""
-        return len(self.joint_names)
-
-    def evaluate(self, s: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def evaluate(self, s: Any, order: int = 3) -> tuple[np.ndarray, ...]:
         """q, dq/ds, d2q/ds2, d3q/ds3 at ``s`` (1-D in [0, 1]); each (len(s), dof); rad or m.
 
         At a knot the one-sided derivatives of the segment to its right are returned (of the
-        last segment at s = 1); the jerk is piecewise constant and jumps at knots.
+        last segment at s = 1); the jerk is piecewise constant and jumps at knots. ``order`` < 3
+        returns only the first ``order + 1`` arrays.
         """
-        s = _check_s(s)
+        s = check_s(s)
         sp = self._spline
-        return sp(s), sp(s, 1), sp(s, 2), sp(s, 3)
-
-    @property
-    def q_start(self) -> np.ndarray:
-        """Joint positions at s = 0."""
-        return self.evaluate(np.array([0.0]))[0][0]
-
-    @property
-    def q_goal(self) -> np.ndarray:
-        """Joint positions at s = 1."""
-        return self.evaluate(np.array([1.0]))[0][0]
-
-    def ee_poses(self, s: Any) -> np.ndarray:
-        """Tool poses (len(s), 4, 4) along the path, base frame."""
-        return np.asarray(self.robot.fk(self.evaluate(s)[0]))
-
-    def timed(self, max_velocity: Any = None, max_acceleration: Any = None,
-              duration: float | None = None) -> Any:
-        """Rest-to-rest time parameterization (see :mod:`geodesic_planner.timing`)."""
-        from .timing import time_parameterize
-        return time_parameterize(self, max_velocity=max_velocity, max_acceleration=max_acceleration,
-                                 duration=duration)
+        return tuple(sp(s, k) for k in range(check_order(order) + 1))
 
 
 class PolynomialPath(_SplinePath):
@@ -270,8 +217,8 @@ def polynomial_path(robot: Any, T_start: Any, T_goal: Any, q_start: Any = None, 
     Raises:
         RequestError: bad arguments. IKError: a via point is not reachable.
     """
-    T_start = _check_T(T_start, 'T_start')
-    T_goal = _check_T(T_goal, 'T_goal')
+    T_start = check_transform(T_start, 'T_start')
+    T_goal = check_transform(T_goal, 'T_goal')
     if isinstance(n_via, bool) or int(n_via) != n_via or int(n_via) < 2:
         raise RequestError(f'n_via must be an integer >= 2, got {n_via!r}')
     if end_velocity not in ('constant', 'zero'):
@@ -307,8 +254,8 @@ def cartesian_ik_path(robot: Any, T_start: Any, T_goal: Any, q_start: Any = None
     Raises:
         RequestError: bad arguments. IKError: a sample is not reachable.
     """
-    T_start = _check_T(T_start, 'T_start')
-    T_goal = _check_T(T_goal, 'T_goal')
+    T_start = check_transform(T_start, 'T_start')
+    T_goal = check_transform(T_goal, 'T_goal')
     if isinstance(samples, bool) or int(samples) != samples or int(samples) < 2:
         raise RequestError(f'samples must be an integer >= 2, got {samples!r}')
     ik_fn = ik if ik is not None else _default_ik(ik_tolerance)

@@ -22,7 +22,7 @@ from scipy.integrate import solve_bvp
 from .errors import BVPError, SingularMetricError
 from .kinematics import Chain
 from .metric import Metric
-from .path import JointPath, QuinticHermite, check_s
+from .path import JointPath, QuinticHermite, check_order, check_s
 
 
 class GeodesicEquations:
@@ -321,17 +321,25 @@ class GeodesicPath(JointPath):
         """Joint positions at s = 1 (the goal boundary condition)."""
         return self.q_nodes[-1].copy()
 
-    def evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """q, q', q'', q''' at s (1-D in [0, 1]); each (len(s), dof); derivatives w.r.t. s."""
+    def evaluate(self, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
+        """q and its first three s-derivatives at s (1-D in [0, 1]); each (len(s), dof).
+
+        ``order`` < 3 returns only the first ``order + 1`` arrays.
+        """
         s = check_s(s)
+        order = check_order(order)
         q, dq = self._spline(s, order=1)
+        if order <= 1:
+            return (q, dq)[:order + 1]
+        if order == 2:
+            return q, dq, self.equations.acceleration(q, dq)
         a, da_dq, da_dv = self.equations.evaluate(q, dq)
         dddq = np.einsum('nij,nj->ni', da_dq, dq) + np.einsum('nij,nj->ni', da_dv, a)
         return q, dq, a, dddq
 
     def metric_speed(self, s: np.ndarray) -> np.ndarray:
         """sqrt(q'ᵀ G q') at s: constant (= length) along an exact geodesic."""
-        q, dq, _, _ = self.evaluate(s)
+        q, dq = self.evaluate(s, order=1)
         return self.metric.speed(self.robot, q, dq)
 
     def residual(self, s: np.ndarray) -> np.ndarray:

@@ -17,6 +17,13 @@ if TYPE_CHECKING:
     from .timing import Trajectory
 
 
+def check_order(order: int) -> int:
+    """Validate a derivative order for evaluate(): 0, 1, 2 or 3."""
+    if order not in (0, 1, 2, 3):
+        raise RequestError(f'order must be 0, 1, 2 or 3, got {order!r}')
+    return int(order)
+
+
 def check_s(s: object) -> np.ndarray:
     """Validate a path-parameter array: 1-D, finite, inside [0, 1] (tiny round-off clipped).
 
@@ -42,8 +49,12 @@ class JointPath(ABC):
     robot: Chain
 
     @abstractmethod
-    def evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """q, dq/ds, d²q/ds², d³q/ds³ at s (1-D in [0, 1]); each (len(s), dof); rad or m."""
+    def evaluate(self, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
+        """q, dq/ds, d²q/ds², d³q/ds³ at s (1-D in [0, 1]); each (len(s), dof); rad or m.
+
+        ``order`` < 3 returns only the first ``order + 1`` of them (cheaper for geodesics, whose
+        third derivative needs the Jacobians of the geodesic equations).
+        """
 
     @property
     def joint_names(self) -> list[str]:

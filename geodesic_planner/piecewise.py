@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .geodesic import GeodesicPath, SolverReport
-from .path import JointPath, check_s
+from .path import JointPath, check_order, check_s
 
 
 class PiecewiseGeodesicPath(JointPath):
@@ -62,15 +62,19 @@ class PiecewiseGeodesicPath(JointPath):
         """Joint positions at every junction (len(pieces) + 1, dof)."""
         return np.array([self.pieces[0].q_start] + [p.q_goal for p in self.pieces])
 
-    def evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """q, q', q'', q''' at global s (1-D in [0, 1]); each (len(s), dof)."""
+    def evaluate(self, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
+        """q and its first three derivatives at global s (1-D in [0, 1]); each (len(s), dof).
+
+        ``order`` < 3 returns only the first ``order + 1`` arrays.
+        """
         s = check_s(s)
+        order = check_order(order)
         idx = np.clip(np.searchsorted(self.breakpoints, s, side='right') - 1, 0, len(self.pieces) - 1)
-        out = [np.empty((s.size, self.dof)) for _ in range(4)]
+        out = [np.empty((s.size, self.dof)) for _ in range(order + 1)]
         for i in np.unique(idx):
             sel = idx == i
             w = self.breakpoints[i + 1] - self.breakpoints[i]
             u = np.clip((s[sel] - self.breakpoints[i]) / w, 0.0, 1.0)
-            for k, arr in enumerate(self.pieces[i].evaluate(u)):
+            for k, arr in enumerate(self.pieces[i].evaluate(u, order)):
                 out[k][sel] = arr / w**k
-        return out[0], out[1], out[2], out[3]
+        return tuple(out)

@@ -43,6 +43,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from .errors import LimitError
+from .path import JointPath
 
 #: Relative margin kept below the limits (TOPP uses limits * (1 - TOPP_MARGIN)).
 TOPP_MARGIN = 1e-3
@@ -65,6 +66,15 @@ class PathLike(Protocol):
 
     def evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(q, q', q'', q''') at ``s`` (N,), each (N, dof); derivatives w.r.t. s."""
+
+
+def _evaluate2(path: Any, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions and first two s-derivatives; our paths skip the third (evaluate(s, order=2))."""
+    if isinstance(path, JointPath):
+        q, q1, q2 = path.evaluate(s, order=2)
+    else:
+        q, q1, q2, _ = path.evaluate(s)
+    return q, q1, q2
 
 
 def _limits(value: Any, default: Any, dof: int, joint_names: list[str], what: str) -> np.ndarray:
@@ -523,7 +533,7 @@ class Trajectory:
             (q, dq, ddq), each (M, dof); rad (m), rad/s (m/s), rad/s^2 (m/s^2).
         """
         s, sd, sdd = self.s_of_t(t)
-        q, q1, q2, _ = self.path.evaluate(s)
+        q, q1, q2 = _evaluate2(self.path, s)
         q1 = np.asarray(q1)
         return np.asarray(q), q1 * sd[:, None], q1 * sdd[:, None] + np.asarray(q2) * (sd**2)[:, None]
 
@@ -674,7 +684,7 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
     need = np.maximum(rv_t, np.sqrt(ra_t))
     k = max(1, min(EXACT_CHECKS, need.size))
     top = np.argpartition(need, -k)[-k:]
-    _, a_x, b_x, _ = (np.asarray(v, dtype=float) for v in path.evaluate(s[top]))
+    _, a_x, b_x = (np.asarray(v, dtype=float) for v in _evaluate2(path, s[top]))
     rv = max(rv, float(np.max(np.abs(a_x * sd[top, None]) / vmax)))
     ra = max(ra, float(np.max(np.abs(a_x * sdd[top, None] + b_x * (sd[top] ** 2)[:, None]) / amax)))
     # At breakpoints q'' (or q') may jump: check both one-sided values at the exact crossing time.
