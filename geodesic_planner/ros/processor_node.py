@@ -43,10 +43,14 @@ times of the node's clock. Data reach the file at least every 0.5 s (see
 
 Executor model: one SingleThreadedExecutor, spun by ``spin_once`` in the main thread; callbacks
 (input, recorded topics, parameter services) therefore never run concurrently and the recorder
-sees one writer (it is thread-safe anyway for its own flush thread). Signals only set a flag.
+sees one writer (it is thread-safe anyway for its own flush thread). Signals only set a flag;
+see :func:`main` for the shutdown order. An unexpected exception while processing an input is
+logged as an internal error and the input counted as rejected (it is already recorded); the
+node keeps going.
 """
 from __future__ import annotations
 
+import faulthandler
 import importlib
 import math
 import signal
@@ -337,6 +341,14 @@ class TrajectoryProcessorNode(Node):
         self.received += 1
         self._record(self.input_topic, raw)
         try:
+            self._process(raw)
+        except Exception as err:  # noqa: BLE001 - boundary: one bad input never ends the node
+            self.rejected += 1
+            self.get_logger().error(f'rejected trajectory: internal error: {type(err).__name__}: {err}')
+
+    def _process(self, raw: bytes) -> None:
+        """Decode, validate, resample, publish and record one input (already recorded raw)."""
+        try:
             msg = deserialize_message(raw, JointTrajectory)
         except Exception as err:  # noqa: BLE001  (rmw deserialisation errors are not typed)
             self.rejected += 1
@@ -377,23 +389,44 @@ class TrajectoryProcessorNode(Node):
 def main(args: list[str] | None = None) -> int:
     """Console script ``trajectory_processor_node``: spin until SIGINT/SIGTERM, then close the bag.
 
+    Shutdown order (as in the planner node): SIGINT/SIGTERM only set a flag (Python handlers,
+    installed before ``rclpy.init``; rclpy's own handlers, which shut the context down at once,
+    are not installed), so a signal never interrupts a callback or a bag write half-way. The
+    spin loop then stops within 0.1 s, messages already delivered are handled (at most
+    DRAIN_TIMEOUT s), the bag is closed (metadata written), the executor is shut down, the
+    node's entities are destroyed while the context is still valid, and only then is rclpy shut
+    down. (Destroying subscriptions after the context was shut down by rclpy's handler crashed,
+    rarely, in ``destroy_subscription`` after load.) ``kill -USR1 <pid>`` dumps every thread's
+    stack to stderr (faulthandler).
+
     Returns:
-        0 on a clean exit (signal), 1 when the parameters are invalid or the bag cannot be created.
+        0 on a clean exit (signal, also one that arrives while starting), 1 when the parameters
+        are invalid or the bag cannot be created (one ``cannot start`` line, no traceback).
     """
     stop = threading.Event()
 
     def _on_signal(signum: int, frame: object) -> None:
         stop.set()
 
-    # Our own handlers only set a flag: a signal never interrupts a bag write half-way.
+    previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    faulthandler.enable()                                     # stacks on a fatal signal
+    faulthandler.register(signal.SIGUSR1, all_threads=True)   # `kill -USR1 pid`: dump stacks
     try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except RCLError as err:  # e.g. a -p value rcl cannot parse
-        print(f'[ERROR] [{NODE_NAME}]: cannot start: {err}', file=sys.stderr)
-        return 1
-    signal.signal(signal.SIGINT, _on_signal)
-    signal.signal(signal.SIGTERM, _on_signal)
+        try:
+            rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        except RCLError as err:  # e.g. a -p value rcl cannot parse
+            print(f'[ERROR] [{NODE_NAME}]: cannot start: {err}', file=sys.stderr)
+            return 1
+        return _run(stop)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _run(stop: threading.Event) -> int:
+    """Create the node, spin until ``stop`` is set, drain, close the bag, tear down in order."""
     node: TrajectoryProcessorNode | None = None
+    executor: SingleThreadedExecutor | None = None
     rc = 0
     try:
         node = TrajectoryProcessorNode()
@@ -416,7 +449,14 @@ def main(args: list[str] | None = None) -> int:
         rc = 1
     finally:
         if node is not None:
-            node.close_bag()
+            try:
+                node.close_bag()
+            except Exception as err:  # noqa: BLE001 - never skip the teardown below
+                node.get_logger().error(f'closing the bag failed: {type(err).__name__}: {err}')
+                rc = rc or 1
+        if executor is not None:
+            executor.shutdown(timeout_sec=2.0)
+        if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
     return rc
