@@ -38,8 +38,11 @@ received; the node's own output as the exact CDR of the published message (rosba
 serialisation; ``serialize_message`` would pad empty arrays). Timestamps are receive/publish
 times of the node's clock. Data reach the file at least every 0.5 s (see
 :mod:`geodesic_planner.bag`): after SIGKILL ``geodesic-bag repair`` recovers all but the last
-0.5 s. On SIGINT/SIGTERM the node finishes the messages already received, closes the bag
-(metadata written) and exits with 0.
+0.5 s. On SIGINT/SIGTERM the node takes every message already delivered to it (processing
+the backlog for up to 2 s, then recording the rest raw without processing, see :func:`_drain`),
+closes the bag (metadata written) and exits with 0. The closing log line gives the counts:
+``received N, published P, rejected R, recorded unprocessed at shutdown U`` (N = P + R + U, and
+the bag holds N inputs and P outputs).
 
 Executor model: one SingleThreadedExecutor, spun by ``spin_once`` in the main thread; callbacks
 (input, recorded topics, parameter services) therefore never run concurrently and the recorder
@@ -83,7 +86,8 @@ DEFAULT_INPUT_TOPIC = '/geodesic_planner/joint_trajectory'
 DEFAULT_OUTPUT_TOPIC = '~/joint_trajectory'
 JOINT_STATES_TOPIC = '/joint_states'
 KNOWN_TYPES = {JOINT_STATES_TOPIC: JOINT_STATE}
-DRAIN_TIMEOUT = 2.0  # s spent at shutdown handling messages already received
+DRAIN_TIMEOUT = 2.0  # s spent at shutdown processing messages already received
+RECORD_DRAIN_TIMEOUT = 5.0  # s more at shutdown recording (without processing) the remaining ones
 
 _STRING, _DOUBLE, _STRING_ARRAY = 'string', 'double', 'string array'
 #: name -> (default, kind, read_only, description)
@@ -162,7 +166,10 @@ class TrajectoryProcessorNode(Node):
         self.received = 0
         self.published = 0
         self.rejected = 0
+        self.unprocessed = 0
         self.callbacks = 0
+        #: set at shutdown once DRAIN_TIMEOUT is spent: inputs are recorded, not processed
+        self.record_only = False
 
         try:
             events = SubscriptionEventCallbacks(matched=self._on_input_matched,
@@ -317,7 +324,8 @@ class TrajectoryProcessorNode(Node):
         counts = ', '.join(f'{t}: {n}' for t, n in recorder.counts.items())
         self.get_logger().info(
             f'bag closed: {recorder.path} ({sum(recorder.counts.values())} messages; {counts}); '
-            f'received {self.received}, published {self.published}, rejected {self.rejected}')
+            f'received {self.received}, published {self.published}, rejected {self.rejected}, '
+            f'recorded unprocessed at shutdown {self.unprocessed}')
 
     # ------------------------------------------------------------------ processing
     def _log_matched(self, topic: str, status: Any) -> None:  # noqa: ANN401
@@ -340,6 +348,9 @@ class TrajectoryProcessorNode(Node):
     def _on_input(self, raw: bytes) -> None:
         self.received += 1
         self._record(self.input_topic, raw)
+        if self.record_only:
+            self.unprocessed += 1
+            return
         try:
             self._process(raw)
         except Exception as err:  # noqa: BLE001 - boundary: one bad input never ends the node
@@ -392,8 +403,8 @@ def main(args: list[str] | None = None) -> int:
     Shutdown order (as in the planner node): SIGINT/SIGTERM only set a flag (Python handlers,
     installed before ``rclpy.init``; rclpy's own handlers, which shut the context down at once,
     are not installed), so a signal never interrupts a callback or a bag write half-way. The
-    spin loop then stops within 0.1 s, messages already delivered are handled (at most
-    DRAIN_TIMEOUT s), the bag is closed (metadata written), the executor is shut down, the
+    spin loop then stops within 0.1 s, messages already delivered are taken and recorded
+    (:func:`_drain`), the bag is closed (metadata written), the executor is shut down, the
     node's entities are destroyed while the context is still valid, and only then is rclpy shut
     down. (Destroying subscriptions after the context was shut down by rclpy's handler crashed,
     rarely, in ``destroy_subscription`` after load.) ``kill -USR1 <pid>`` dumps every thread's
@@ -423,6 +434,34 @@ def main(args: list[str] | None = None) -> int:
             signal.signal(sig, handler)
 
 
+def _drain(node: TrajectoryProcessorNode, executor: SingleThreadedExecutor) -> None:
+    """At shutdown: take every message already delivered to the node's readers, so it is recorded.
+
+    A reliable publisher counts a message as delivered once it is in the node's reader queue
+    (keep_all), so a backlog there must reach the bag too. The backlog is processed and
+    published as usual for up to DRAIN_TIMEOUT s; what is left after that is only recorded (raw,
+    as received; counted as "recorded unprocessed"), for up to RECORD_DRAIN_TIMEOUT s more.
+    Draining stops as soon as a 0.05 s spin finds nothing.
+    """
+    start = time.monotonic()
+    while rclpy.ok():
+        before = node.received + node.callbacks
+        executor.spin_once(timeout_sec=0.05)
+        if node.received + node.callbacks == before:
+            return
+        elapsed = time.monotonic() - start
+        if not node.record_only and elapsed >= DRAIN_TIMEOUT:
+            node.record_only = True
+            node.get_logger().warning(
+                f'shutdown: still receiving after {DRAIN_TIMEOUT:g} s of processing; recording the '
+                'remaining inputs without processing them')
+        if elapsed >= DRAIN_TIMEOUT + RECORD_DRAIN_TIMEOUT:
+            node.get_logger().warning(
+                f'shutdown: inputs still arriving after {DRAIN_TIMEOUT + RECORD_DRAIN_TIMEOUT:g} s; '
+                'closing the bag (later messages are not recorded)')
+            return
+
+
 def _run(stop: threading.Event) -> int:
     """Create the node, spin until ``stop`` is set, drain, close the bag, tear down in order."""
     node: TrajectoryProcessorNode | None = None
@@ -434,14 +473,8 @@ def _run(stop: threading.Event) -> int:
         executor.add_node(node)
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
-        # Handle what was already delivered before closing the bag.
-        deadline = time.monotonic() + DRAIN_TIMEOUT
-        while rclpy.ok() and time.monotonic() < deadline:
-            before = node.received + node.callbacks
-            executor.spin_once(timeout_sec=0.05)
-            if node.received + node.callbacks == before:
-                break
         node.get_logger().info('shutting down (signal received)')
+        _drain(node, executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (GeodesicPlannerError, ParameterException) as err:
