@@ -206,10 +206,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f'{state}: {report.path} ({report.storage}): {report.note}; {counts}')
             if report.damaged_file is not None:
                 print(f'original storage file kept as {report.damaged_file}')
-    except GeodesicPlannerError as err:
-        print(f'ERROR: {err}', file=sys.stderr)
-        return 1
-    except OSError as err:
+    except (GeodesicPlannerError, OSError) as err:
         print(f'ERROR: {err}', file=sys.stderr)
         return 1
     return 0

@@ -22,9 +22,8 @@ import numpy as np
 from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from .errors import IKError, RequestError
-from .ik import check_transform
 from .path import JointPath, check_order, check_s
-from .transforms import line_slerp, so3_log
+from .transforms import check_transform, line_slerp, so3_log
 
 #: ``ik(robot, T_target (4, 4), seed (dof,)) -> q (dof,)``.
 IKFunction = Callable[[Any, np.ndarray, np.ndarray], np.ndarray]

@@ -65,10 +65,7 @@ def plan_main(argv: Sequence[str] | None = None) -> int:
                   f'{sol.max_residual:.2g}, {sol.time_ms:.1f} ms -> {args.output}', file=sys.stderr)
         else:
             print(text)
-    except GeodesicPlannerError as err:
-        print(f'ERROR: {err}', file=sys.stderr)
-        return 1
-    except OSError as err:
+    except (GeodesicPlannerError, OSError) as err:
         print(f'ERROR: {err}', file=sys.stderr)
         return 1
     return 0

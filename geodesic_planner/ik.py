@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import IKError, RequestError
 from .kinematics import Chain, embed12
-from .transforms import pose_error
+from .transforms import check_transform, pose_error
 
 #: Default allowed embedding distance between the requested pose and the nearest reachable one.
 DEFAULT_IK_TOLERANCE = 1e-3
@@ -243,26 +243,3 @@ def solve_ik(
             f'orientation error {best.orientation_error:.4g} rad)',
             residual=best.residual, iterations=total_it)
     return best
-
-
-def check_transform(T: object, what: str) -> np.ndarray:
-    """Validate a 4x4 homogeneous transform (finite, orthonormal rotation); returns a float array.
-
-    Raises:
-        RequestError: wrong shape, NaN/inf, or a rotation that is not orthonormal.
-    """
-    try:
-        arr = np.asarray(T, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise RequestError(f'{what}: not a numeric 4x4 transform ({err})') from err
-    if arr.shape != (4, 4):
-        raise RequestError(f'{what}: expected a 4x4 homogeneous transform, got shape {arr.shape}')
-    if not np.all(np.isfinite(arr)):
-        raise RequestError(f'{what}: transform contains NaN or inf')
-    R = arr[:3, :3]
-    err = float(np.abs(R.T @ R - np.eye(3)).max())
-    if err > 1e-6 or np.linalg.det(R) < 0:
-        raise RequestError(f'{what}: rotation part is not a proper rotation (|RᵀR − I| = {err:.3g})')
-    if not np.allclose(arr[3], [0, 0, 0, 1]):
-        raise RequestError(f'{what}: last row must be [0, 0, 0, 1]')
-    return arr

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import KinematicsError, RequestError
-from .transforms import hat
+from .transforms import check_transform, hat
 
 REVOLUTE = 'revolute'
 PRISMATIC = 'prismatic'
@@ -419,10 +419,8 @@ def chain_from_dh(
                             float(mv[i]), float(ma[i])))
     if tool is not None:
         try:
-            tool_T = np.asarray(tool, dtype=float)
-        except (TypeError, ValueError) as err:
-            raise KinematicsError(f'robot {name!r}: tool must be a 4x4 transform ({err})') from err
-        if tool_T.shape != (4, 4):
-            raise KinematicsError(f'robot {name!r}: tool must be a 4x4 transform, got shape {tool_T.shape}')
+            tool_T = check_transform(tool, f'robot {name!r}: tool')
+        except RequestError as err:
+            raise KinematicsError(str(err)) from err
         fixed[-1] = fixed[-1] @ tool_T
     return Chain(name, joints, fixed, base_link=base_link, tip_link=tip_link, home=home)

@@ -17,11 +17,11 @@ import numpy as np
 from .errors import LimitError, RequestError
 from .geodesic import (GeodesicEquations, GeodesicPath, SolverReport, collocation_rms, refine_mesh,
                        solve_geodesic_bvp)
-from .ik import IKSolution, check_transform, dls_batch, solve_ik
+from .ik import IKSolution, dls_batch, solve_ik
 from .kinematics import Chain, embed12
 from .metric import DEFAULT_REDUNDANT_EPSILON, Metric
 from .path import QuinticHermite
-from .transforms import hat, line_slerp, so3_log
+from .transforms import check_transform, hat, line_slerp, so3_log
 
 if TYPE_CHECKING:
     from .piecewise import PiecewiseGeodesicPath

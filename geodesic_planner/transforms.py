@@ -194,3 +194,26 @@ def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[np.ndarray, np.ndarray
     sv = np.stack([Rrel[..., 2, 1] - Rrel[..., 1, 2], Rrel[..., 0, 2] - Rrel[..., 2, 0],
                    Rrel[..., 1, 0] - Rrel[..., 0, 1]], axis=-1)
     return dp, np.arctan2(np.linalg.norm(sv, axis=-1), c)  # accurate for small and large angles
+
+
+def check_transform(T: object, what: str) -> np.ndarray:
+    """Validate a 4x4 homogeneous transform (finite, orthonormal rotation); returns a float array.
+
+    Raises:
+        RequestError: wrong shape, NaN/inf, or a rotation that is not orthonormal.
+    """
+    try:
+        arr = np.asarray(T, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise RequestError(f'{what}: not a numeric 4x4 transform ({err})') from err
+    if arr.shape != (4, 4):
+        raise RequestError(f'{what}: expected a 4x4 homogeneous transform, got shape {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise RequestError(f'{what}: transform contains NaN or inf')
+    R = arr[:3, :3]
+    err = float(np.abs(R.T @ R - np.eye(3)).max())
+    if err > 1e-6 or np.linalg.det(R) < 0:
+        raise RequestError(f'{what}: rotation part is not a proper rotation (|RᵀR − I| = {err:.3g})')
+    if not np.allclose(arr[3], [0, 0, 0, 1]):
+        raise RequestError(f'{what}: last row must be [0, 0, 0, 1]')
+    return arr
