@@ -292,8 +292,9 @@ def check_path(planner: GeodesicPlanner, path: Any, q_a: np.ndarray | None, q_b:
             assert var < SPEED_TOL * 2, f'piecewise: global metric speed varies by {var:.3g}'
 
 
-def check_trajectory(path: Any, traj: Any, vmax: np.ndarray, amax: np.ndarray) -> None:
-    """A timed trajectory: finite, within limits, at rest at both ends, at the path's ends."""
+def check_trajectory(path: Any, traj: Any, vmax: np.ndarray, amax: np.ndarray, tol: float = 1e-5) -> None:
+    """A timed trajectory: finite, within limits, at rest at both ends, at the path's ends, and
+    dq, ddq the time derivatives of q, dq (up to the path's solver tolerance ``tol``)."""
     T = traj.duration
     assert math.isfinite(T) and T >= 0.0, f'duration {T}'
     t = np.linspace(0.0, T, 1501)
@@ -311,6 +312,11 @@ def check_trajectory(path: Any, traj: Any, vmax: np.ndarray, amax: np.ndarray) -
         np.testing.assert_allclose(ddq[k], 0.0, atol=1e-9, err_msg='not at rest (acceleration)')
     np.testing.assert_allclose(q[0], path.q_start, atol=1e-9, rtol=0)
     np.testing.assert_allclose(q[-1], path.q_goal, atol=1e-9, rtol=0)
+    if 0 < T < 1e-3 and float(np.abs(q - q[0]).max()) < 1e-9:
+        # BUG tracked by test_regression_plan_through_roundoff: nothing moves (a path of round-off
+        # length) yet the law lasts ~1 µs with sdot ~ 1e6 and inconsistent derivatives.
+        _record('known bugs', 'timed(): round-off-length path gets a 1 µs law', 0.0)
+        return
     if T > 0:
         # Velocities and accelerations are the time derivatives of what at_time returns (central
         # differences at interior times; h small against every ramp of the time law).
@@ -319,9 +325,13 @@ def check_trajectory(path: Any, traj: Any, vmax: np.ndarray, amax: np.ndarray) -
         qp, dqp, _ = traj.at_time(tc + h)
         qm, dqm, _ = traj.at_time(tc - h)
         _, dq_c, ddq_c = traj.at_time(tc)
-        # Allowed: a small fraction of the limit plus the round-off of the differences.
+        # Allowed: a small fraction of the limit plus the round-off of the differences, plus for ddq
+        # the solver's tolerance: a GeodesicPath's q'' is the geodesic equations' value, its q' the
+        # spline's derivative; they agree to tol (1 + |q''|) (absolute), times sdot².
+        _, sd_c, _ = traj.s_of_t(tc)
+        q2 = np.abs(path.evaluate(traj.s_of_t(tc)[0])[2])
         noise_v = 4e-16 * (np.abs(q).max() + 1.0) / (2 * h) / vmax
-        noise_a = 4e-16 * (np.abs(dq).max() + 1.0) / (2 * h) / amax
+        noise_a = 4e-16 * (np.abs(dq).max() + 1.0) / (2 * h) / amax + tol * (1.0 + q2) * (sd_c**2)[:, None] / amax
         err_v = np.abs((qp - qm) / (2 * h) - dq_c) / vmax - noise_v
         err_a = np.abs((dqp - dqm) / (2 * h) - ddq_c) / amax - noise_a
         assert err_v.max() < 1e-4, f'dq is not the derivative of q (error {err_v.max():.3g} of the limit)'
@@ -446,7 +456,7 @@ def plan_and_check(category: str, planner: GeodesicPlanner, start: Any, goal: An
         robot = planner.robot
         tr = guarded(category + '.timed', path.timed)
         if tr.value is not None:
-            check_trajectory(path, tr.value, robot.max_velocity, robot.max_acceleration)
+            check_trajectory(path, tr.value, robot.max_velocity, robot.max_acceleration, planner.tol)
     return out
 
 
@@ -720,7 +730,7 @@ def _plan_through(robot: Chain, data: Any) -> None:
     assert bp[0] == 0.0 and bp[-1] == 1.0 and np.all(np.diff(bp) > 0), f'breakpoints {bp}'
     tr = guarded('plan_through.timed', path.timed)
     if tr.value is not None:
-        check_trajectory(path, tr.value, robot.max_velocity, robot.max_acceleration)
+        check_trajectory(path, tr.value, robot.max_velocity, robot.max_acceleration, planner.tol)
 
 
 test_fuzz_plan_through, test_fuzz_plan_through_slow = _plan_through
@@ -1226,7 +1236,7 @@ def test_regression_solve_ik_bad_target(target: Any, cause: str) -> None:
 
 @pytest.mark.parametrize(('kwargs', 'cause'), [
     ({'joint_names': ['a']}, r"^robot 'bad': 1 joint names for 2 joints$"),
-    ({'tool': np.eye(3)}, r"^robot 'bad': tool must be a 4x4 transform, got shape \(3, 3\)$"),
+    ({'tool': np.eye(3)}, r"^robot 'bad': tool.*4x4.*got shape \(3, 3\)$"),
     ({'rows': [(0.0, 0.0, 'x', 0.0), (0.0, 0.0, 1.0, 0.0)]}, r"^robot 'bad': DH row 0 must hold 4 numbers"),
     ({'lower': [0.0], 'upper': [1.0, 1.0]}, r"^robot 'bad': lower limits need one number or 2 numbers, got 1$"),
     ({'max_velocity': [1.0, 1.0, 1.0]}, r"^robot 'bad': velocity limits need one number or 2 numbers, got 3$")])
@@ -1317,3 +1327,14 @@ def test_regression_same_pose_self_motion() -> None:
     moved = float(np.abs(path.q_goal - path.q_start).max())
     assert moved <= 1e-9 and path.ik_start.residual <= 1e-9, \
         f'start IK residual {path.ik_start.residual:.3g}, joints moved by {moved:.3g} rad'
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason='BUG: plan_through([T, T]) on the RRPP: the goal IK lands a few ulp from the start '
+                   '(length 2e-16) and timed() makes a 1.05 µs law of it (plan() itself is fixed)')
+def test_regression_plan_through_roundoff() -> None:
+    robot = load_robot('rrpp')
+    T = robot.fk(robot.home)
+    path = GeodesicPlanner(robot).plan_through([T, T])
+    assert path.length == 0.0 or path.timed().duration == 0.0, \
+        f'length {path.length:.3g}, duration {path.timed().duration:.3g} s'
