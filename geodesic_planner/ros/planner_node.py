@@ -58,6 +58,7 @@ from __future__ import annotations
 import faulthandler
 import math
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -66,6 +67,7 @@ from typing import Any
 
 import numpy as np
 import rclpy
+from rclpy._rclpy_pybind11 import RCLError
 from nav_msgs.msg import Path
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -628,7 +630,11 @@ def main(args: list[str] | None = None) -> int:
     previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     faulthandler.enable()                                     # stacks on a fatal signal
     faulthandler.register(signal.SIGUSR1, all_threads=True)   # `kill -USR1 pid`: dump stacks
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except RCLError as err:  # e.g. a -p value rcl cannot parse
+        print(f'[ERROR] [{NODE_NAME}]: cannot start: {err}', file=sys.stderr)
+        return 1
     node = None
     executor = None
     try:
