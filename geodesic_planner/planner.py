@@ -31,6 +31,8 @@ if TYPE_CHECKING:
 DEFAULT_TOL = 1e-5
 #: Boundary joints closer than this (rad or m) are the same configuration (a zero-length path).
 SAME_JOINTS = 1e-12
+#: Start and goal poses closer than this (every matrix entry) are the same pose.
+SAME_POSE = 1e-12
 #: Joint positions may exceed their limits by this much (round-off), rad or m.
 LIMIT_SLACK = 1e-9
 #: Steps of the line-following goal IK used when the start joints alone do not seed the goal.
@@ -43,6 +45,12 @@ DEFAULT_NODES = 11
 EXACT_GUESS_RESIDUAL = 1e-10
 #: Pre-sized meshes aim at this fraction of the solver tolerance (room for the Newton step).
 PRESIZE_MARGIN = 0.5
+
+
+def snap_same(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
+    """q_b, or exactly q_a when the two differ only by round-off (a zero-length path)."""
+    q_b = np.array(q_b, dtype=float)
+    return np.array(q_a, dtype=float) if np.abs(q_b - q_a).max() <= SAME_JOINTS else q_b
 
 
 class GeodesicPlanner:
@@ -125,25 +133,31 @@ class GeodesicPlanner:
         Raises:
             RequestError: missing/invalid end; IKError: unreachable pose.
         """
-        ik_a = ik_b = None
+        # Validate both ends before any IK, so a bad request is named as such.
         if start_joints is not None:
             q_a = self.robot.check_joints(start_joints, 'start_joints')
         elif start is not None:
-            ik_a = self._ik(check_transform(start, 'start pose'), None, tolerance)
-            q_a = ik_a.q
+            T_a = check_transform(start, 'start pose')
         else:
             raise RequestError('start: give a start pose or start_joints')
         if goal_joints is not None:
             q_b = self.robot.check_joints(goal_joints, 'goal_joints')
         elif goal is not None:
-            ik_b = self._goal_ik(check_transform(goal, 'goal pose'), q_a, tolerance)
-            q_b = ik_b.q
+            T_b = check_transform(goal, 'goal pose')
         else:
             raise RequestError('goal: give a goal pose or goal_joints')
-        q_a, q_b = np.array(q_a, dtype=float), np.array(q_b, dtype=float)
-        if np.abs(q_b - q_a).max() <= SAME_JOINTS:
-            q_b = q_a.copy()   # the same configuration up to round-off: a path of length 0
-        return q_a, q_b, ik_a, ik_b
+        ik_a = ik_b = None
+        if start_joints is None:
+            ik_a = self._ik(T_a, None, tolerance)
+            q_a = ik_a.q
+        if goal_joints is None:
+            if start_joints is None and np.abs(T_b - T_a).max() <= SAME_POSE:
+                ik_b = ik_a            # the same pose: stay in the start configuration
+            else:
+                ik_b = self._goal_ik(T_b, q_a, tolerance)
+            q_b = ik_b.q
+        q_a = np.array(q_a, dtype=float)
+        return q_a, snap_same(q_a, q_b), ik_a, ik_b
 
     # ------------------------------------------------------------------ guess
     def initial_guess(self, q_a: np.ndarray, q_b: np.ndarray, s: np.ndarray,
@@ -215,8 +229,14 @@ class GeodesicPlanner:
             raise LimitError(f'{what}: joint {r.joint_names[i]!r} = {q[i]:.6g} is outside its limits '
                              f'[{r.lower[i]:.6g}, {r.upper[i]:.6g}]')
 
-    def _check_path_limits(self, s: np.ndarray, q: np.ndarray) -> None:
+    def _check_path_limits(self, path: GeodesicPath) -> None:
+        """Raise LimitError if the path leaves the position limits (mesh nodes and 3 points
+        between each pair of nodes of its spline)."""
         r = self.robot
+        nodes = path.s_nodes
+        between = nodes[:-1, None] + np.diff(nodes)[:, None] * np.array([0.25, 0.5, 0.75])
+        s = np.concatenate([nodes, between.ravel()])
+        q = path.evaluate(s, order=0)[0]
         out = (q < r.lower - LIMIT_SLACK) | (q > r.upper + LIMIT_SLACK)
         if np.any(out):
             k, i = (int(x) for x in np.argwhere(out)[0])
@@ -237,11 +257,12 @@ class GeodesicPlanner:
         s_sol, q_sol, v_sol, a_sol, rep = solve_geodesic_bvp(
             self.equations, q_a, q_b, s, q_g, v_g, tol=self.tol, max_nodes=self.max_nodes,
             time_limit=self.time_limit)
-        if self.check_limits:
-            self._check_path_limits(s_sol, q_sol)
         rep = SolverReport(rep.status, rep.message, rep.iterations, rep.max_residual, rep.mesh_size,
                            (time.perf_counter() - t0) * 1e3, rep.bc_residual)
-        return GeodesicPath(self.equations, s_sol, q_sol, v_sol, rep, ik_a, ik_b, a_sol)
+        path = GeodesicPath(self.equations, s_sol, q_sol, v_sol, rep, ik_a, ik_b, a_sol)
+        if self.check_limits:
+            self._check_path_limits(path)
+        return path
 
     def _presize_mesh(self, q_a: np.ndarray, q_b: np.ndarray, s: np.ndarray, q: np.ndarray,
                       v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -300,6 +321,7 @@ class GeodesicPlanner:
         pieces = []
         for i, T in enumerate(targets[1:], start=1):
             ik_b = self._goal_ik(T, q_prev, tolerance)
-            pieces.append(self._solve(q_prev, ik_b.q, ik_a if i == 1 else None, ik_b, time.perf_counter()))
-            q_prev = ik_b.q
+            q_next = snap_same(q_prev, ik_b.q)
+            pieces.append(self._solve(q_prev, q_next, ik_a if i == 1 else None, ik_b, time.perf_counter()))
+            q_prev = q_next
         return PiecewiseGeodesicPath(pieces, (time.perf_counter() - t0) * 1e3)
