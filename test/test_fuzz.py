@@ -274,10 +274,7 @@ def check_path(planner: GeodesicPlanner, path: Any, q_a: np.ndarray | None, q_b:
     if planner.check_limits:
         q_dense = path.evaluate(np.linspace(0.0, 1.0, 2001))[0]
         out = float(np.max(np.maximum(robot.lower - q_dense, q_dense - robot.upper)))
-        if 1e-9 < out <= 1e-3:  # BUG tracked by test_regression_limits_between_mesh_nodes
-            _record('known bugs', 'path leaves the limits between mesh nodes by <= 1e-3', 0.0)
-        else:
-            assert out <= 1e-9, f'path leaves the joint limits by {out:.3g} between mesh nodes'
+        assert out <= 1e-9, f'path leaves the joint limits by {out:.3g} between mesh nodes'
     poses = path.ee_poses(S_CHECK)
     assert np.all(np.isfinite(poses))
     if planner.tol > 1e-4:  # the user asked for a coarse solve: only the above is promised
@@ -312,11 +309,6 @@ def check_trajectory(path: Any, traj: Any, vmax: np.ndarray, amax: np.ndarray, t
         np.testing.assert_allclose(ddq[k], 0.0, atol=1e-9, err_msg='not at rest (acceleration)')
     np.testing.assert_allclose(q[0], path.q_start, atol=1e-9, rtol=0)
     np.testing.assert_allclose(q[-1], path.q_goal, atol=1e-9, rtol=0)
-    if 0 < T < 1e-3 and float(np.abs(q - q[0]).max()) < 1e-9:
-        # BUG tracked by test_regression_plan_through_roundoff: nothing moves (a path of round-off
-        # length) yet the law lasts ~1 µs with sdot ~ 1e6 and inconsistent derivatives.
-        _record('known bugs', 'timed(): round-off-length path gets a 1 µs law', 0.0)
-        return
     if T > 0:
         # Velocities and accelerations are the time derivatives of what at_time returns (central
         # differences at interior times; h small against every ramp of the time law).
@@ -585,11 +577,6 @@ def _hostile_poses(robot: Chain, data: Any) -> None:
     bad = build(T, x)
     end = draw(st.sampled_from(['start', 'goal']))
     args = (bad, T) if end == 'start' else (T, bad)
-    if end == 'goal':
-        out = guarded('hostile.poses', lambda: planner.plan(*args))
-        if isinstance(out.error, IKError):  # BUG tracked by test_regression_plan_validates_goal_late
-            _record('known bugs', 'plan: bad goal pose not named (start IK failed first)', 0.0)
-            return
     expect_error('hostile.poses', lambda: planner.plan(*args), RequestError, rf'{end} pose: .*' + cause)
 
 
@@ -1288,10 +1275,9 @@ def test_regression_timing_velocity_overshoot() -> None:
     assert ratio <= 1.0, f'max |dq| / vmax = {ratio:.7f}'
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason='BUG: plan() solves the start IK before it validates the goal pose: with an '
-                   'unreachable start, a NaN goal is reported as the IKError of the start')
 def test_regression_plan_validates_goal_late(planar: GeodesicPlanner) -> None:
+    """Found by the fuzzer: plan() solved the start IK before validating the goal, so with an
+    unreachable start a NaN goal was reported as the start's IKError."""
     T_far = np.eye(4)
     T_far[0, 3] = 5.0
     T_nan = np.eye(4)
@@ -1302,10 +1288,9 @@ def test_regression_plan_validates_goal_late(planar: GeodesicPlanner) -> None:
                  r'^goal_joints: joint values contain NaN or inf')
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason='BUG: the limit check looks at the mesh nodes only; between them the quintic '
-                   'spline of this panda path goes 1.03e-5 rad below joint 5\'s lower limit')
 def test_regression_limits_between_mesh_nodes() -> None:
+    """Found by the fuzzer: the limit check looked at the mesh nodes only, and the spline of this
+    panda path went 1.03e-5 rad below joint 5's lower limit between them."""
     robot = load_robot('panda')
     q_a = [0.2298, -1.3294, -0.179, -2.3772, -2.8973, 3.6699, 1.2618]   # joint 5 on its lower limit
     q_b = [0.2133, -1.1278, -0.4356, -2.4423, -2.8973, 3.7525, 1.4748]
@@ -1316,23 +1301,32 @@ def test_regression_limits_between_mesh_nodes() -> None:
         assert below <= 1e-9, f'{below:.3g} rad below a lower limit between mesh nodes'
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason='BUG: plan(T, T) on the panda at its joint limits: the start IK stops at a residual '
-                   'of 5.5e-4 (the pose is exactly reachable), the goal IK (seeded with it) goes on to 1.6e-7, '
-                   'so start == goal gives a 1.3e-3 rad self-motion instead of staying put')
+PANDA_AT_LIMITS = [-2.8973, -1.7628, 0.1811, -2.978, -2.8973, 0.4538, -1.4486]
+
+
 def test_regression_same_pose_self_motion() -> None:
+    """Found by the fuzzer: plan(T, T) on the panda at its joint limits made a 1.3e-3 rad
+    self-motion (the goal IK, seeded with an inexact start solution, went on converging)."""
     robot = load_robot('panda')
-    T = robot.fk(np.array([-2.8973, -1.7628, 0.1811, -2.978, -2.8973, 0.4538, -1.4486]))
-    path = GeodesicPlanner(robot).plan(T, T)
-    moved = float(np.abs(path.q_goal - path.q_start).max())
-    assert moved <= 1e-9 and path.ik_start.residual <= 1e-9, \
-        f'start IK residual {path.ik_start.residual:.3g}, joints moved by {moved:.3g} rad'
+    path = GeodesicPlanner(robot).plan(*[robot.fk(np.array(PANDA_AT_LIMITS))] * 2)
+    moved = float(np.abs(path.evaluate(S_CHECK)[0] - path.q_start).max())
+    assert moved == 0.0 and path.length == 0.0, f'joints moved by {moved:.3g} rad'
+    assert path.timed().duration == 0.0
 
 
 @pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason='BUG: plan_through([T, T]) on the RRPP: the goal IK lands a few ulp from the start '
-                   '(length 2e-16) and timed() makes a 1.05 µs law of it (plan() itself is fixed)')
+                   reason='BUG: IK on the panda stops at an embedding residual of 5.5e-4 for an exactly '
+                   'reachable pose (fk of joints on their limits); arms with >= 6 joints are meant to reach '
+                   'a pose exactly (commit 1be4ba7)')
+def test_regression_ik_inexact_at_limits() -> None:
+    from geodesic_planner.ik import solve_ik
+    robot = load_robot('panda')
+    sol = solve_ik(robot, robot.fk(np.array(PANDA_AT_LIMITS)))
+    assert sol.residual <= 1e-9, f'IK residual {sol.residual:.3g} for an exactly reachable pose'
+
+
 def test_regression_plan_through_roundoff() -> None:
+    """Found by the fuzzer: plan_through([T, T]) on the RRPP gave a 2e-16 long path and a 1.05 µs law."""
     robot = load_robot('rrpp')
     T = robot.fk(robot.home)
     path = GeodesicPlanner(robot).plan_through([T, T])
