@@ -853,37 +853,50 @@ def _evaluate(which: str, s: list[Any]) -> None:
 test_fuzz_evaluate, test_fuzz_evaluate_slow = _evaluate
 
 
-ANY_FLOAT = st.one_of(st.floats(0.1, 5.0), st.floats(0.1, 5.0), st.floats(-10.0, 10.0),
-                      st.sampled_from([0.0, -1.0, np.nan, np.inf, 1e-12, 1e12]))
+#: Hostile values per planner option and the words the RequestError must use for it.
+BAD_OPTIONS: dict[str, tuple[list[Any], str]] = {
+    'metric': (['PAPER', '', 'dp2', 'traditional'], r"^metric: unknown metric"),
+    'position_weight': ([-1.0, np.nan, np.inf, -1e-12], r'^metric: position_weight must be finite and >= 0'),
+    'orientation_weight': ([-1.0, np.nan, np.inf], r'^metric: orientation_weight must be finite and >= 0'),
+    'epsilon': ([-1.0, np.nan, np.inf], r'^metric: epsilon must be finite and >= 0'),
+    'nodes': ([-2, 0, 2, 10**6, 5.5], r'^nodes must be in \[3, max_nodes\]'),
+    'max_nodes': ([0, 2, -5, 100.5], r'^max_nodes must be an integer >= 3|^nodes must be in \[3, max_nodes\]'),
+    'tol': ([0.0, -1e-6, 1.0, 5.0, np.nan, np.inf], r'^tol \(collocation tolerance\) must be a number in \(0, 1\)'),
+    'time_limit': ([0.0, -1.0, np.nan], r'^time_limit must be > 0 s or None'),
+}
 
 
-@fuzz(60, robot_name=st.sampled_from(PRESET_NAMES),
-      metric=st.one_of(st.just('paper'), st.sampled_from(['paper', 'position', 'PAPER', '', 'dp2'])),
-      wp=ANY_FLOAT, wo=ANY_FLOAT, eps=st.one_of(st.none(), st.none(), ANY_FLOAT),
-      nodes=st.one_of(st.integers(3, 40), st.integers(-2, 60)),
-      max_nodes=st.one_of(st.just(2000), st.sampled_from([2, 5, 100, 2000])),
-      tol=st.one_of(st.floats(1e-9, 1e-2), ANY_FLOAT),
-      time_limit=st.one_of(st.none(), st.sampled_from([0.0, -1.0, np.nan, 1e-9, 0.5, 2.0])))
-def _planner_options(robot_name: str, metric: str, wp: float, wo: float, eps: float | None, nodes: int,
-                     max_nodes: int, tol: float, time_limit: float | None) -> None:
-    """GeodesicPlanner options, valid and not: bad ones give RequestError naming the option."""
+@fuzz(60, robot_name=st.sampled_from(PRESET_NAMES), data=st.data())
+def _planner_options(robot_name: str, data: Any) -> None:
+    """GeodesicPlanner options: a valid set (random weights, ε, mesh sizes, tolerances, time limits)
+    that must plan a short move, or the same with one option broken, which must give RequestError
+    naming that option."""
+    draw = data.draw
     robot = load_robot(robot_name)
-    mk = guarded('options', lambda: GeodesicPlanner(robot, metric, position_weight=wp, orientation_weight=wo,
-                                                    epsilon=eps, nodes=nodes, max_nodes=max_nodes, tol=tol,
-                                                    time_limit=time_limit))
-    bad_metric = metric not in ('paper', 'position')
-    bad_weight = not all(math.isfinite(v) and v >= 0 for v in (wp, wo) + ((eps,) if eps is not None else ()))
-    bad_nodes = not 3 <= nodes <= max_nodes
-    bad_tol = not (math.isfinite(tol) and 0 < tol < 1)
-    bad_time = time_limit is not None and not time_limit > 0
-    if bad_metric or bad_weight or bad_nodes or bad_tol or bad_time:
-        assert isinstance(mk.error, RequestError), f'invalid options accepted: {mk.value or mk.error!r}'
-        assert re.search(r'metric|weight|epsilon|nodes|tol \(collocation tolerance\)|time_limit', str(mk.error)), \
-            str(mk.error)
+    opts: dict[str, Any] = {
+        'metric': draw(st.sampled_from(['paper', 'paper', 'position'])),
+        'position_weight': draw(st.one_of(st.floats(0.1, 5.0), st.just(1.0))),
+        'orientation_weight': draw(st.one_of(st.floats(0.1, 5.0), st.just(1.0), st.just(0.0))),
+        'epsilon': draw(st.one_of(st.none(), st.floats(0.0, 1e-2))),
+        'nodes': draw(st.integers(3, 40)),
+        'max_nodes': draw(st.sampled_from([2000, 2000, 500, 100])),
+        'tol': draw(st.one_of(st.floats(1e-8, 1e-3), st.just(1e-5))),
+        'time_limit': draw(st.sampled_from([None, SOLVE_TIME_LIMIT, 0.5])),
+    }
+    opts['max_nodes'] = max(opts['max_nodes'], opts['nodes'])
+    broken = draw(st.sampled_from([None, None, None] + sorted(BAD_OPTIONS)))
+    if broken is not None:
+        values, cause = BAD_OPTIONS[broken]
+        opts[broken] = draw(st.sampled_from(values))
+        if broken == 'orientation_weight' and opts['metric'] == 'position':
+            opts['metric'] = 'paper'   # the position metric ignores the orientation weight
+        expect_error('options', lambda: GeodesicPlanner(robot, **opts), RequestError, cause)
         return
-    if mk.error is not None:  # e.g. both weights 0 (position metric ignores wo)
+    mk = guarded('options', lambda: GeodesicPlanner(robot, **opts))
+    if opts['position_weight'] == 0 and (opts['orientation_weight'] == 0 or opts['metric'] == 'position'):
         assert isinstance(mk.error, RequestError) and 'weights are both 0' in str(mk.error), mk.error
         return
+    assert mk.error is None, f'valid options {opts} rejected: {mk.error}'
     planner = mk.value
     q_a = robot.home if robot_name != 'planar_3r' else np.array([0.258, 0.583, -0.317])
     q_b = np.clip(q_a + 0.1, robot.lower, robot.upper)
