@@ -224,7 +224,8 @@ class Chain:
         F = self._fixed[1:]                      # (dof, 4, 4): F_{i+1}
         # M_i F_{i+1}, M_i a rotation about / translation along z: row operations on F_{i+1},
         # for all joints at once.
-        MF = np.broadcast_to(F, (N, self.dof, 4, 4)).copy()
+        MF = np.empty((N, self.dof, 4, 4))
+        MF[:] = F
         c = np.cos(q)[..., None]
         s_ = np.sin(q)[..., None]
         rot0 = c * F[:, 0] - s_ * F[:, 1]
@@ -238,7 +239,7 @@ class Chain:
             MF[:, :, 1] = np.where(rev, rot1, F[:, 1])
             MF[:, :, 2] += np.where(rev, 0.0, q[..., None] * F[:, 3])
         Tj = np.empty((N, self.dof, 4, 4))
-        T = np.broadcast_to(self._fixed[0], (N, 4, 4))
+        T = self._fixed[0]                       # (4, 4): broadcasts in the first product
         for i in range(self.dof):
             Tj[:, i] = T
             T = T @ MF[:, i]

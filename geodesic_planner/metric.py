@@ -75,21 +75,25 @@ class Metric:
         G = np.einsum('nixy,njxy->nij', Y * self.mask, Y) + self.epsilon * np.eye(robot.dof)
         return G.reshape(q.shape[:-1] + (robot.dof, robot.dof))
 
-    def check_regular(self, robot: Chain, q: np.ndarray, what: str = 'configuration') -> None:
-        """Raise SingularMetricError if G is singular at any of the configurations q (..., dof)."""
+    def check_regular(self, robot: Chain, q: np.ndarray, what: str | list[str] = 'configuration') -> None:
+        """Raise SingularMetricError if G is singular at any of the configurations q (..., dof).
+
+        ``what`` names the configurations in the message: one label, or one per row of q.
+        """
         G = self.tensor(robot, q).reshape(-1, robot.dof, robot.dof)
         ev = np.linalg.eigvalsh(G)
         bad = ev[:, 0] <= SINGULAR_RCOND * np.maximum(ev[:, -1], 1e-300)
         if np.any(bad):
             i = int(np.argmax(bad))
             qi = np.asarray(q, dtype=float).reshape(-1, robot.dof)[i]
+            label = what if isinstance(what, str) else what[i]
             hint = ''
             if self.kind == 'position' and robot.dof > 2:
                 hint = ' (the traditional dp² metric has rank <= 3 on a planar arm and < dof beyond 3 joints: paper eq. 15-16)'
             elif robot.dof > 6 and self.epsilon == 0:
                 hint = ' (more than 6 joints: use epsilon > 0)'
             raise SingularMetricError(
-                f'metric {self.describe()} is singular for robot {robot.name!r} at {what} '
+                f'metric {self.describe()} is singular for robot {robot.name!r} at {label} '
                 f'q={np.round(qi, 6).tolist()}: smallest eigenvalue {ev[i, 0]:.3g}, '
                 f'largest {ev[i, -1]:.3g}{hint}')
 

@@ -248,8 +248,7 @@ class GeodesicPlanner:
         if self.check_limits:
             self._check_limits(q_a, 'start joints')
             self._check_limits(q_b, 'goal joints')
-        self.metric.check_regular(self.robot, q_a, 'the start')
-        self.metric.check_regular(self.robot, q_b, 'the goal')
+        self.metric.check_regular(self.robot, np.stack([q_a, q_b]), ['the start', 'the goal'])
         s = np.linspace(0.0, 1.0, self.nodes)
         q_g, v_g, exact = self.initial_guess(q_a, q_b, s)
         if exact:
