@@ -127,18 +127,6 @@ def _record(category: str, outcome: str, seconds: float) -> None:
     STATS['times'][category].append(seconds)
 
 
-def guarded_known(category: str, fn: Callable[[], Any], known: type, bug: str) -> Outcome:
-    """``guarded``, but a bare ``known`` exception (a known bug with a strict xfail regression) is
-    counted under 'known bugs' instead of failing the example."""
-    try:
-        return guarded(category, fn)
-    except AssertionError as err:
-        if type(err.__cause__) is known:
-            _record('known bugs', bug, 0.0)
-            return Outcome()
-        raise
-
-
 def expect_error(category: str, fn: Callable[[], Any], kind: type, cause: str) -> GeodesicPlannerError:
     """Guarded call that must raise ``kind`` with a message matching ``cause`` (regex, case-insensitive)."""
     out = guarded(category, fn)
@@ -1192,7 +1180,7 @@ def test_regression_nan_tolerance(planar: GeodesicPlanner) -> None:
 
 # ---------------------------------------------------------------------------------------- known bugs
 # Found by the fuzzer; strict xfail until the library is fixed (then they XPASS: drop the mark, and
-# the matching guarded_known / 'known bugs' handling in the fuzz tests above).
+# the matching 'known bugs' allowance in the fuzz checks above).
 def test_regression_timing_overshoot() -> None:
     """Found by the fuzzer: timed() once exceeded the acceleration limit by 2.6 % on this panda
     geodesic (its limit check used interpolated path derivatives). Checked here on the exact path."""
