@@ -48,7 +48,7 @@ from .path import JointPath
 #: Relative margin kept below the limits (TOPP uses limits * (1 - TOPP_MARGIN)).
 TOPP_MARGIN = 1e-3
 #: After the dense check every sample satisfies |value| <= limit * (1 - CHECK_MARGIN).
-CHECK_MARGIN = 1e-4
+CHECK_MARGIN = 1e-3
 #: Cap on sdot^2 (1/s^2) where a path segment does not move any joint.
 _X_CAP = 1e12
 
@@ -158,6 +158,8 @@ CORNER_TOLERANCE = 1e-5
 MIN_PIECE_STEPS = 8
 #: Samples of the dense check (those nearest a limit) re-verified with exact path derivatives.
 EXACT_CHECKS = 32
+#: Extra limit-check samples spread uniformly in s (mapped to t).
+S_UNIFORM_CHECKS = 1000
 
 
 def _sample_path(path: Any, grid_points: int) -> _PathSamples:
@@ -675,6 +677,10 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
     m = int(check_samples) if check_samples is not None else max(4000, 20 * ps.s.size)
     t_chk = np.linspace(0.0, law.duration, max(m, 10))
     t_chk = np.union1d(t_chk, law.t_offsets)
+    s, sd, sdd, _ = law.evaluate(t_chk)
+    # Also samples uniform in s (mapped back to t): a long law can cross a stretch of the path
+    # in a fraction of its duration, where samples uniform in t are sparse.
+    t_chk = np.union1d(t_chk, np.interp(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS), s, t_chk))
     s, sd, sdd, _ = law.evaluate(t_chk)
     a, b = ps.interpolate(s)
     rv_t = np.max(np.abs(a * sd[:, None]) / vmax, axis=1)
