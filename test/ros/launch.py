@@ -284,6 +284,32 @@ def wait_for_publishers(node: Any, topic: str, n: int = 1, timeout: float = DEFA
                       timeout, what=f'{n} publisher(s) on {topic}', watch=watch)
 
 
+def warm_up_client(client: Any, request: Any, deadline: float, *, watch: Any = None) -> int:
+    """Wait for the service, then until one harmless ``request`` gets its response (retried).
+
+    ``wait_for_service`` only says that the server reads our requests; until the server's
+    response writer has matched our response reader, rmw_fastrtps drops the response ("failed to
+    send response (timeout): client will not receive response"), which happens under load. So a
+    new client is used only after one round trip. Returns the number of requests sent.
+    """
+    wait_for_service(client, deadline, watch=watch)
+    sent = 0
+
+    def round_trip() -> bool:
+        nonlocal sent
+        sent += 1
+        future = client.call_async(request)
+        try:
+            wait_until(future.done, 3.0, what='warm-up response', watch=watch)
+            return True
+        except AssertionError:
+            client.remove_pending_request(future)
+            return False
+
+    wait_until(round_trip, deadline, what=f'a warm-up round trip on {client.srv_name}', watch=watch)
+    return sent
+
+
 def call_service(client: Any, request: Any, timeout: float = DEFAULT_TIMEOUT, *,
                  watch: Iterable[NodeProcess] = ()) -> Any:
     """Call an rclpy service (its node must be spun elsewhere, e.g. the ``rclpy`` fixture).

@@ -42,7 +42,7 @@ from geodesic_planner.transforms import make_transform, pose_error, so3_exp, so3
 from geodesic_planner.urdf import chain_from_urdf  # noqa: E402
 
 from .launch import (Collector, RclpyRuntime, call_service, popen_node, wait_for_service,  # noqa: E402
-                     wait_for_subscribers, wait_until)
+                     wait_for_subscribers, wait_until, warm_up_client)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
 
@@ -65,27 +65,8 @@ def warmup_request(client: Any) -> Any:
 
 
 def ready(client: Any, watch: list[Any]) -> None:
-    """Wait for the service, then until a harmless request gets its response.
-
-    ``wait_for_service`` only says that the server reads our requests; until the server's
-    response writer has matched our response reader, rmw_fastrtps drops the response ("failed to
-    send response (timeout): client will not receive response"), which happens under load. So
-    a new client is used only after one round trip, retried (the request has no effect).
-    """
-    wait_for_service(client, DEADLINE, watch=watch)
-    req = warmup_request(client)
-
-    def round_trip() -> bool:
-        future = client.call_async(req)
-        try:
-            wait_until(future.done, 3.0, what='warm-up response', watch=watch)
-            return True
-        except AssertionError:
-            client.remove_pending_request(future)
-            return False
-
-    wait_until(round_trip, DEADLINE, what=f'a warm-up round trip on {client.srv_name}',
-               watch=watch)
+    """Wait for the service and one harmless round trip (see launch.warm_up_client)."""
+    warm_up_client(client, warmup_request(client), DEADLINE, watch=watch)
 
 
 def diagnose(proc: Any) -> str:

@@ -47,7 +47,7 @@ from geodesic_planner.bag import bag_info, read_trajectories  # noqa: E402
 from geodesic_planner.ros import conversions as cv  # noqa: E402
 
 from .launch import (Collector, NodeProcess, call_service, wait_for_service,  # noqa: E402
-                     wait_for_subscribers, wait_until)
+                     wait_for_subscribers, wait_until, warm_up_client)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(600)]
 
@@ -183,26 +183,10 @@ class OwnContextClient:
 
 
 def warm_up(client: Any, watch: list[NodeProcess]) -> int:
-    """Wait for the plan service, then for one harmless round trip (a request in an unknown
-    frame; it fails and is logged). rmw_fastrtps drops a response sent before the server's
-    response writer matched this client's reader, so a new client is used only after one round
-    trip. Returns the number of warm-up requests sent."""
-    wait_for_service(client, DEADLINE, watch=watch)
-    sent = 0
-
-    def round_trip() -> bool:
-        nonlocal sent
-        sent += 1
-        future = client.call_async(GetPlan.Request(goal=pose(*GOAL, frame=WARMUP_FRAME)))
-        try:
-            wait_until(future.done, 3.0, what='warm-up response', watch=watch)
-            return True
-        except AssertionError:
-            client.remove_pending_request(future)
-            return False
-
-    wait_until(round_trip, DEADLINE, what=f'a warm-up round trip on {client.srv_name}', watch=watch)
-    return sent
+    """One harmless round trip (a request in an unknown frame: it fails and is logged) before a
+    new client is used (see launch.warm_up_client). Returns the number of requests sent."""
+    request = GetPlan.Request(goal=pose(*GOAL, frame=WARMUP_FRAME))
+    return warm_up_client(client, request, DEADLINE, watch=watch)
 
 
 def set_params(client: Any, watch: list[NodeProcess], **values: Any) -> list[Any]:
