@@ -46,7 +46,7 @@ from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 from geodesic_planner.bag import bag_info, read_trajectories  # noqa: E402
 from geodesic_planner.ros import conversions as cv  # noqa: E402
 
-from .launch import (Collector, NodeProcess, call_service, wait_for_service,  # noqa: E402
+from .launch import (Collector, NodeProcess, call_service,  # noqa: E402
                      wait_for_subscribers, wait_until, warm_up_client)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(600)]
