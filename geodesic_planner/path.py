@@ -12,6 +12,7 @@ import numpy as np
 
 from .errors import RequestError
 from .kinematics import Chain
+from .resample import evaluate_polynomials, quintic_coefficients
 
 if TYPE_CHECKING:
     from .timing import Trajectory
@@ -97,6 +98,9 @@ class JointPath(ABC):
 class QuinticHermite:
     """C² piecewise-quintic interpolation of values, first and second derivatives at knots.
 
+    The same interpolant the trajectory processor uses (:func:`resample.quintic_coefficients`):
+    coefficients are computed once, evaluation is one vectorised Horner pass.
+
     Args:
         x: knots (m,), strictly increasing.
         y, dy, ddy: values and derivatives at the knots, (m, d).
@@ -104,27 +108,8 @@ class QuinticHermite:
 
     def __init__(self, x: np.ndarray, y: np.ndarray, dy: np.ndarray, ddy: np.ndarray) -> None:
         self.x = np.asarray(x, dtype=float)
-        self.y, self.dy, self.ddy = (np.asarray(a, dtype=float) for a in (y, dy, ddy))
+        self._coefficients = quintic_coefficients(self.x, *(np.asarray(a, dtype=float) for a in (y, dy, ddy)))
 
     def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]:
-        """Values and derivatives up to ``order`` (<= 5) at xs (k,): list of (k, d) arrays."""
-        x = self.x
-        i = np.clip(np.searchsorted(x, xs, side='right') - 1, 0, x.size - 2)
-        h = (x[i + 1] - x[i])[:, None]
-        t = ((xs - x[i])[:, None]) / h
-        p0, v0, a0 = self.y[i], self.dy[i] * h, self.ddy[i] * h * h
-        p1, v1, a1 = self.y[i + 1], self.dy[i + 1] * h, self.ddy[i + 1] * h * h
-        # Polynomial coefficients in t: p(t) = Σ c_k t^k
-        c0, c1, c2 = p0, v0, 0.5 * a0
-        c3 = 10 * (p1 - p0) - 6 * v0 - 4 * v1 - 1.5 * a0 + 0.5 * a1
-        c4 = -15 * (p1 - p0) + 8 * v0 + 7 * v1 + 1.5 * a0 - a1
-        c5 = 6 * (p1 - p0) - 3 * v0 - 3 * v1 - 0.5 * a0 + 0.5 * a1
-        coeffs = [c0, c1, c2, c3, c4, c5]
-        out = []
-        for d in range(order + 1):
-            acc = np.zeros_like(p0)
-            for k in range(5, d - 1, -1):
-                fac = float(np.prod(np.arange(k - d + 1, k + 1))) if d else 1.0
-                acc = acc * t + fac * coeffs[k]
-            out.append(acc / h**d)
-        return out
+        """Values and derivatives up to ``order`` (<= 2) at xs (k,): list of (k, d) arrays."""
+        return list(evaluate_polynomials(self._coefficients, self.x, xs))[:order + 1]

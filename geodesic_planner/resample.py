@@ -35,6 +35,7 @@ MAX_SAMPLES = 1_000_000
 
 __all__ = [
     'MAX_SAMPLES',
+    'evaluate_polynomials',
     'process_trajectory',
     'quintic_coefficients',
     'resample',
@@ -169,7 +170,7 @@ def _cubic_coefficients(t: np.ndarray, q: np.ndarray, dq: np.ndarray) -> np.ndar
     return c
 
 
-def _evaluate(c: np.ndarray, t: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def evaluate_polynomials(c: np.ndarray, t: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Evaluate piecewise polynomials (N-1, 6, dof) at times (M,): position, velocity, acceleration."""
     seg = np.clip(np.searchsorted(t, times, side='right') - 1, 0, len(t) - 2)
     tau = (times - t[seg])[:, None]
@@ -232,10 +233,10 @@ def resample(
         return times, q_arr.copy(), vel.copy(), acc.copy()
 
     if dq_arr is not None and ddq_arr is not None:
-        pos, vel, acc = _evaluate(quintic_coefficients(t, q_arr, dq_arr, ddq_arr), t, times)
+        pos, vel, acc = evaluate_polynomials(quintic_coefficients(t, q_arr, dq_arr, ddq_arr), t, times)
         knot_acc = ddq_arr
     elif dq_arr is not None:
-        pos, vel, acc = _evaluate(_cubic_coefficients(t, q_arr, dq_arr), t, times)
+        pos, vel, acc = evaluate_polynomials(_cubic_coefficients(t, q_arr, dq_arr), t, times)
         knot_acc = None  # cubic Hermite acceleration is discontinuous at waypoints: keep evaluated one
     else:
         spline = CubicSpline(t, q_arr, axis=0, bc_type='clamped')
