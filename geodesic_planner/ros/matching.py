@@ -4,11 +4,16 @@ A volatile DDS reader receives only what is published after it has matched the w
 graph (``count_subscribers``) can show a subscription before the writer has matched it. A node
 that publishes a one-off message (a planned trajectory) therefore waits, briefly and boundedly,
 until every subscription the graph shows on the topic has matched its publisher.
+
+The graph of the publishing node may not show a new subscription at all yet, so a client that
+must receive the next message waits for the writer's own word: :func:`matched_logger` logs
+``<topic>: N subscription(s) matched`` whenever the publisher's match count changes.
 """
 from __future__ import annotations
 
 import time
 
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 
@@ -27,3 +32,14 @@ def wait_for_matched_subscriptions(node: Node, publisher: Publisher, timeout: fl
         if matched >= node.count_subscribers(publisher.topic_name) or time.monotonic() >= deadline:
             return matched
         time.sleep(0.002)
+
+
+def matched_logger(node: Node, topic: str) -> PublisherEventCallbacks:
+    """Publisher event callbacks that log ``<topic>: N subscription(s) matched`` on every change.
+
+    ``topic`` is the name to log (the publisher's resolved name is not known before creation).
+    """
+    def on_matched(status: object) -> None:
+        if getattr(status, 'current_count_change', 0):
+            node.get_logger().info(f'{topic}: {getattr(status, "current_count", 0)} subscription(s) matched')
+    return PublisherEventCallbacks(matched=on_matched)

@@ -86,7 +86,7 @@ from visualization_msgs.msg import MarkerArray
 from .. import GeodesicPlanner, load_robot
 from ..errors import GeodesicPlannerError, LimitError, RequestError
 from . import conversions as cv
-from .matching import wait_for_matched_subscriptions
+from .matching import matched_logger, wait_for_matched_subscriptions
 
 NODE_NAME = 'geodesic_planner'
 #: Robot used when neither ``robot`` nor ``robot_description`` is given: the paper's planar 3R arm.
@@ -436,7 +436,8 @@ class GeodesicPlannerNode(Node):
         self.trajectory_pub = self.create_publisher(
             JointTrajectory, '~/joint_trajectory',
             QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
-                       reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE))
+                       reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE),
+            event_callbacks=matched_logger(self, self.resolve_topic_name('~/joint_trajectory')))
         self.marker_pub = self.create_publisher(
             MarkerArray, '~/path_markers',
             QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,

@@ -79,7 +79,7 @@ from ..bag import JOINT_STATE, JOINT_TRAJECTORY, STORAGES, BagRecorder, make_typ
 from ..errors import BagError, GeodesicPlannerError, RequestError
 from ..resample import process_trajectory
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory
-from .matching import wait_for_matched_subscriptions
+from .matching import matched_logger, wait_for_matched_subscriptions
 
 NODE_NAME = 'trajectory_processor'
 DEFAULT_INPUT_TOPIC = '/geodesic_planner/joint_trajectory'
@@ -177,9 +177,11 @@ class TrajectoryProcessorNode(Node):
             self.input_sub = self.create_subscription(
                 JointTrajectory, self.get_parameter('input_topic').value, self._on_input, _qos(keep_all=True),
                 event_callbacks=events, raw=True)
+            output_topic = self.get_parameter('output_topic').value
             self.output_pub = self.create_publisher(
-                JointTrajectory, self.get_parameter('output_topic').value, _qos())
-        except (ValueError, TypeError, NameValidationException) as err:
+                JointTrajectory, output_topic, _qos(),
+                event_callbacks=matched_logger(self, f'output {self.resolve_topic_name(output_topic)}'))
+        except (ValueError, TypeError, RuntimeError, NameValidationException) as err:
             msg = f'invalid topic name: {err}'
             raise RequestError(msg) from err
         self.input_topic = self.input_sub.topic_name

@@ -277,6 +277,20 @@ def wait_for_subscribers(pub: Any, n: int = 1, timeout: float = DEFAULT_TIMEOUT,
                       timeout, what=f'{n} subscriber(s) on {pub.topic_name}', watch=watch)
 
 
+def wait_writer_matched(process: NodeProcess, topic: str, n: int = 1, timeout: float = DEFAULT_TIMEOUT, *,
+                        watch: Iterable[NodeProcess] = ()) -> None:
+    """Wait until the node's publisher on ``topic`` has matched ``n`` subscriptions (its log).
+
+    Our subscription seeing the publisher is not enough: the publishing side can match later,
+    and what it sends before that never reaches a volatile reader. Both nodes log
+    ``<topic>: N subscription(s) matched`` from the writer's matched event.
+    """
+    import re
+    pattern = re.compile(rf'{re.escape(topic)}: (\d+) subscription\(s\) matched')
+    wait_until(lambda: any(int(c) >= n for c in pattern.findall(process.log_text())), timeout,
+               what=f'{n} subscription(s) matched by the publisher on {topic}', watch=watch or [process])
+
+
 def wait_for_publishers(node: Any, topic: str, n: int = 1, timeout: float = DEFAULT_TIMEOUT, *,
                         watch: Iterable[NodeProcess] = ()) -> int:
     """Wait until ``topic`` has at least ``n`` publishers in the graph; return the count."""

@@ -31,7 +31,8 @@ from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 from geodesic_planner.bag import JOINT_TRAJECTORY, bag_info, read_trajectories, to_cdr  # noqa: E402
 from geodesic_planner.ros import conversions as cv  # noqa: E402
 
-from .launch import Collector, call_service, wait_for_service, wait_for_subscribers, wait_until  # noqa: E402
+from .launch import (Collector, call_service, wait_for_service, wait_for_subscribers,  # noqa: E402
+                     wait_until, wait_writer_matched)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
 
@@ -102,6 +103,7 @@ class Processor:
         self.wait_matched(INPUT, 1)
         wait_until(lambda: self.out.subscription.get_publisher_count() > 0, DEADLINE,
                    what='processor output publisher matched', watch=self.watch)
+        wait_writer_matched(self.process, OUTPUT, 1, DEADLINE, watch=self.watch)
 
     def wait_matched(self, topic: str, n: int) -> None:
         """Wait until the node's subscription to ``topic`` matched ``n`` publishers.
@@ -425,6 +427,7 @@ def test_round_trip_planner_processor_bag(start_node: Any, ros_node: Any, tmp_pa
     wait_until(lambda: planned.subscription.get_publisher_count() > 0, DEADLINE, what='planner publisher', watch=watch)
     # the processor's input must have matched both the planner and this test's publisher
     p.wait_matched(INPUT, 2)
+    wait_writer_matched(planner, INPUT, 2, DEADLINE, watch=watch)
     response = call_service(client, GetPlan.Request(start=_pose_3r(*A_3R), goal=_pose_3r(*B_3R)), DEADLINE,
                             watch=watch)
     assert response.plan.poses

@@ -47,7 +47,7 @@ from geodesic_planner.bag import bag_info, read_trajectories  # noqa: E402
 from geodesic_planner.ros import conversions as cv  # noqa: E402
 
 from .launch import (Collector, NodeProcess, call_service,  # noqa: E402
-                     wait_for_subscribers, wait_until, warm_up_client)
+                     wait_for_subscribers, wait_until, wait_writer_matched, warm_up_client)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(600)]
 
@@ -212,6 +212,8 @@ def nodes(start_node: Any, ros_node: Any, tmp_path: Path) -> Iterator[dict[str, 
     # processor's own "matched" line for the planner's publisher
     wait_until(lambda: f'input {INPUT}: 1 publisher(s) matched' in processor.log_text(), DEADLINE,
                what='processor input matched the planner', watch=watch)
+    wait_writer_matched(processor, OUTPUT, 1, DEADLINE, watch=watch)
+    wait_writer_matched(planner, INPUT, 2, DEADLINE, watch=watch)
     yield {'planner': planner, 'processor': processor, 'watch': watch, 'bag': bag,
            'planned': planned, 'processed': processed}
 
@@ -587,6 +589,7 @@ def test_sigkill_mid_stream_loses_at_most_the_last_second(start_node: Any, ros_n
     try:
         wait_for_subscribers(pub, 1, DEADLINE, watch=[proc])
         wait_until(lambda: sub.get_publisher_count() > 0, DEADLINE, what='processor output matched', watch=[proc])
+        wait_writer_matched(proc, OUTPUT, 1, DEADLINE, watch=[proc])
         wait_until(lambda: f'input {INPUT}: 1 publisher(s) matched' in proc.log_text(), DEADLINE,
                    what='processor input matched', watch=[proc])
         streamer.start()
