@@ -101,6 +101,49 @@ def dls_batch(
     return q, np.sqrt(cost), it
 
 
+def gauss_newton_batch(
+    robot: Chain,
+    targets: np.ndarray,
+    seeds: np.ndarray,
+    *,
+    position_weight: float = 1.0,
+    orientation_weight: float = 1.0,
+    max_iterations: int = 10,
+    residual_tol: float = 1e-12,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Batched undamped Gauss-Newton on the weighted embedding error, for seeds near a solution.
+
+    Cheaper per iteration than :func:`dls_batch` (no trial step, no acceptance test) and
+    quadratically convergent on reachable targets; meant for the mesh nodes of a path, whose
+    seeds (joint interpolation, or a spline through nearby nodes) are close.
+
+    Args:
+        targets: target transforms (N, 4, 4).
+        seeds: initial joints (N, dof).
+        residual_tol: stop when every weighted embedding residual is below this (m).
+    Returns:
+        (q, residual, X, T): q (N, dof); residual (N,) at q; ``robot.generators(q)`` at q.
+    """
+    w = np.empty((3, 4))
+    w[:, :3] = orientation_weight
+    w[:, 3] = position_weight
+    target = targets[:, :3, :] * w
+    q = np.array(seeds, dtype=float, copy=True)
+    n = robot.dof
+    reg = 1e-14 * np.eye(n)
+    for _ in range(max_iterations + 1):
+        X, T = robot.generators(q)
+        e = (T[:, :3, :] * w - target).reshape(-1, 12)
+        cost = np.einsum('ni,ni->n', e, e)
+        if cost.max() <= residual_tol * residual_tol or _ == max_iterations:
+            break
+        J = ((X @ T[:, None])[:, :, :3, :] * w).reshape(-1, n, 12)       # (N, dof, 12) = Jᵀ
+        A = J @ J.transpose(0, 2, 1) + reg
+        g = J @ e[..., None]
+        q = np.minimum(np.maximum(q - np.linalg.solve(A, g)[..., 0], robot.lower), robot.upper)
+    return q, np.sqrt(cost), X, T
+
+
 def _wrap_into_limits(robot: Chain, q: np.ndarray) -> np.ndarray:
     """Shift revolute joints by multiples of 2π towards their limits (the pose is unchanged)."""
     q = q.copy()
@@ -131,18 +174,65 @@ def planar_3r_ik(T: np.ndarray, link_lengths: tuple[float, float, float] = (1.0,
         T: 4x4 target; only x, y and the yaw φ = atan2(n_y, n_x) are used.
         elbow: +1 for θ2 >= 0 (paper Table 2), -1 for the other branch.
     """
+    q = planar_3r_branches(np.asarray(T, dtype=float)[None], link_lengths)[0 if elbow >= 0 else 1, 0]
+    return None if np.isnan(q[0]) else q
+
+
+def planar_3r_branches(T: np.ndarray, link_lengths: tuple[float, float, float] = (1.0, 1.0, 1.0)
+                       ) -> np.ndarray:
+    """Both closed-form 3R solutions for targets (N, 4, 4) -> (2, N, 3): elbow θ2 >= 0, then θ2 <= 0.
+
+    Only x, y and the yaw φ = atan2(n_y, n_x) are used; unreachable rows are NaN. Angles in (-π, π].
+    """
     l1, l2, l3 = link_lengths
-    phi = np.arctan2(T[1, 0], T[0, 0])
-    wx = T[0, 3] - l3 * np.cos(phi)
-    wy = T[1, 3] - l3 * np.sin(phi)
+    phi = np.arctan2(T[:, 1, 0], T[:, 0, 0])
+    wx = T[:, 0, 3] - l3 * np.cos(phi)
+    wy = T[:, 1, 3] - l3 * np.sin(phi)
     c2 = (wx * wx + wy * wy - l1 * l1 - l2 * l2) / (2 * l1 * l2)
-    if not -1.0 - 1e-12 <= c2 <= 1.0 + 1e-12:
+    reach = np.abs(c2) <= 1.0 + 1e-12
+    t2 = np.where(reach, np.arccos(np.clip(c2, -1.0, 1.0)), np.nan)
+    out = np.empty((2, T.shape[0], 3))
+    for b, t2b in enumerate((t2, -t2)):
+        t1 = np.arctan2(wy, wx) - np.arctan2(l2 * np.sin(t2b), l1 + l2 * np.cos(t2b))
+        out[b, :, 0], out[b, :, 1], out[b, :, 2] = t1, t2b, phi - t1 - t2b
+    return (out + np.pi) % (2 * np.pi) - np.pi
+
+
+def planar_3r_closed_form(T: np.ndarray) -> np.ndarray:
+    """``Chain.closed_form_ik`` of the planar 3R preset: both branches (2, N, 3), NaN off the plane."""
+    planar = (np.abs(T[:, 2, 3]) < 1e-9) & (np.abs(T[:, 2, 2] - 1.0) < 1e-9)
+    out = planar_3r_branches(T)
+    out[:, ~planar] = np.nan
+    return out
+
+
+def nearest_branch(candidates: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """Per row, the closed-form candidate nearest ``reference``.
+
+    Args:
+        candidates: (B, N, dof), NaN rows for no solution; reference: (N, dof).
+    Returns:
+        (N, dof); NaN rows where no branch exists.
+    """
+    d = np.abs(candidates - reference).max(axis=-1)
+    d = np.where(np.isnan(d), np.inf, d)
+    k = np.argmin(d, axis=0)
+    return candidates[k, np.arange(candidates.shape[1])]
+
+
+def _exact_solution(robot: Chain, T_target: np.ndarray, q: np.ndarray, position_weight: float,
+                    orientation_weight: float) -> IKSolution | None:
+    """``q`` as the IK solution if it reaches the target exactly within the joint limits, else None."""
+    q = _wrap_into_limits(robot, q)
+    if not robot.within_limits(q, 1e-9):
         return None
-    t2 = elbow * np.arccos(np.clip(c2, -1.0, 1.0))
-    t1 = np.arctan2(wy, wx) - np.arctan2(l2 * np.sin(t2), l1 + l2 * np.cos(t2))
-    t3 = phi - t1 - t2
-    q = np.array([t1, t2, t3])
-    return (q + np.pi) % (2 * np.pi) - np.pi
+    T = robot.fk(q)
+    w = _weights12(position_weight, orientation_weight)
+    r = float(np.linalg.norm((embed12(T) - embed12(T_target)) * w))
+    if r > EXACT_RESIDUAL:
+        return None
+    dp, dr = pose_error(T, T_target)
+    return IKSolution(q, True, 0, r, float(dp), float(dr))
 
 
 def solve_ik(
@@ -184,14 +274,16 @@ def solve_ik(
     T_target = check_transform(T_target, 'IK target')
     q0 = np.asarray(robot.home if seed is None else robot.check_joints(seed, 'IK seed'), dtype=float)
     preferred = [q0]
-    if robot.name == 'planar_3r' and abs(T_target[2, 3]) < 1e-9:
-        closed = [c for c in (planar_3r_ik(T_target, elbow=1), planar_3r_ik(T_target, elbow=-1))
-                  if c is not None]
+    if robot.closed_form_ik is not None:
+        closed = [c for c in robot.closed_form_ik(T_target[None])[:, 0] if not np.isnan(c[0])]
         if closed:
-            # Default branch θ2 > 0 (paper Table 2); with a seed, the branch nearest to it.
+            # First branch by default (3R: θ2 > 0, paper Table 2); with a seed, the nearest to it.
             if seed is not None:
                 closed.sort(key=lambda c: float(np.linalg.norm(c - q0)))
             preferred = [closed[0], q0, *closed[1:]]
+            exact = _exact_solution(robot, T_target, closed[0], position_weight, orientation_weight)
+            if exact is not None:
+                return exact
     rng = np.random.default_rng(rng_seed)
     lo = np.where(np.isfinite(robot.lower), robot.lower, -np.pi)
     hi = np.where(np.isfinite(robot.upper), robot.upper, np.pi)

@@ -14,7 +14,7 @@ Units: lengths in m, angles in rad. Arrays are batched over leading axes: ``q`` 
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -103,6 +103,9 @@ class Chain:
                 f'robot {name!r}: {len(joints)} joints need {len(joints) + 1} fixed transforms, '
                 f'got {len(fixed)}')
         self.name = name
+        #: Optional closed-form IK: targets (N, 4, 4) -> candidate solutions (B, N, dof), NaN rows
+        #: where a branch has no solution. Used for the path ends and the mesh nodes when set.
+        self.closed_form_ik: Callable[[np.ndarray], np.ndarray] | None = None
         self.joints: tuple[Joint, ...] = tuple(joints)
         self.base_link = base_link
         self.tip_link = tip_link

@@ -70,10 +70,13 @@ class Metric:
         """Metric tensor G(q): joint positions (..., dof) -> (..., dof, dof)."""
         q = np.asarray(q, dtype=float)
         flat = q.reshape(-1, robot.dof)
-        X, T = robot.generators(flat)
-        Y = X @ T[:, None]
-        G = np.einsum('nixy,njxy->nij', Y * self.mask, Y) + self.epsilon * np.eye(robot.dof)
+        G = self.tensor_from_generators(*robot.generators(flat))
         return G.reshape(q.shape[:-1] + (robot.dof, robot.dof))
+
+    def tensor_from_generators(self, X: np.ndarray, T: np.ndarray) -> np.ndarray:
+        """G from ``robot.generators(q)`` (X (N, dof, 4, 4), T (N, 4, 4)) -> (N, dof, dof)."""
+        Y = X @ T[:, None]
+        return np.einsum('nixy,njxy->nij', Y * self.mask, Y) + self.epsilon * np.eye(X.shape[1])
 
     def check_regular(self, robot: Chain, q: np.ndarray, what: str | list[str] = 'configuration') -> None:
         """Raise SingularMetricError if G is singular at any of the configurations q (..., dof).

@@ -11,6 +11,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .errors import KinematicsError, RequestError
+from .ik import planar_3r_closed_form
 from .kinematics import PRISMATIC, REVOLUTE, Chain, chain_from_dh, rot_x, rot_z, trans
 
 R, P = REVOLUTE, PRISMATIC
@@ -18,11 +19,16 @@ PI = np.pi
 
 
 def planar_3r() -> Chain:
-    """Planar 3R arm of the paper's Fig. 4: three revolute joints about z, links of 1 m."""
-    return chain_from_dh(
+    """Planar 3R arm of the paper's Fig. 4: three revolute joints about z, links of 1 m.
+
+    Has a closed-form IK (paper Table 2; ``ik.planar_3r_closed_form``).
+    """
+    chain = chain_from_dh(
         'planar_3r', [(0.0, 0.0, 1.0, 0.0)] * 3, [R, R, R],
         lower=[-PI] * 3, upper=[PI] * 3, max_velocity=1.0, max_acceleration=2.0,
         base_link='base_link', tip_link='tool0')
+    chain.closed_form_ik = planar_3r_closed_form
+    return chain
 
 
 def rrpp() -> Chain:

@@ -216,3 +216,37 @@ def test_check_transform_rejects(T, match):
         check_transform(T, 'goal pose')
     with pytest.raises(RequestError, match='goal pose'):
         check_transform(T, 'goal pose')
+
+
+def test_planar_3r_branches_batch_matches_single_and_reaches_targets():
+    from geodesic_planner.ik import nearest_branch, planar_3r_branches
+    robot = load_robot('planar_3r')
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-np.pi, np.pi, (40, 3))
+    q[:, 1] = np.sign(q[:, 1]) * np.clip(np.abs(q[:, 1]), 0.1, 2.8)
+    T = robot.fk(q)
+    both = planar_3r_branches(T)
+    assert both.shape == (2, 40, 3)
+    for k in range(40):
+        assert_allclose(both[0, k], planar_3r_ik(T[k], elbow=1), atol=0)
+        assert_allclose(both[1, k], planar_3r_ik(T[k], elbow=-1), atol=0)
+    assert_allclose(robot.fk(both[0]), T, atol=1e-12)
+    assert_allclose(robot.fk(both[1]), T, atol=1e-12)
+    # the branch nearest the true joints is the true joints (up to 2π)
+    near = nearest_branch(both, q)
+    assert_allclose((near - q + np.pi) % (2 * np.pi) - np.pi, 0.0, atol=1e-9)
+    far = planar_pose(3.5, 0.0, 1.0, 0.0)[None]
+    assert np.isnan(planar_3r_branches(far)).all()
+
+
+def test_gauss_newton_batch_converges_on_reachable_targets():
+    from geodesic_planner.ik import gauss_newton_batch
+    robot = load_robot('ur5e')
+    rng = np.random.default_rng(4)
+    q_true = robot.home + rng.uniform(-0.4, 0.4, (25, 6))
+    seeds = q_true + rng.uniform(-0.05, 0.05, q_true.shape)
+    q, res, X, T = gauss_newton_batch(robot, robot.fk(q_true), seeds)
+    assert res.max() < 1e-12
+    assert_allclose(T, robot.fk(q), atol=1e-15)          # returned kinematics are at the returned q
+    assert_allclose(X, robot.generators(q)[0], atol=1e-15)
+    assert_allclose(q, q_true, atol=1e-9)                 # near seeds: the same solution

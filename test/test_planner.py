@@ -43,9 +43,12 @@ def test_plan_contract(ur5e):
     assert len(out) == 4 and all(a.shape == (7, 6) for a in out)
     assert_allclose(path.ee_poses(s), robot.fk(out[0]), atol=1e-15)
     rep = path.solver
-    assert rep.status == 0 and isinstance(rep.message, str) and rep.iterations >= 1
-    assert rep.mesh_size >= 3 and rep.time_ms > 0 and rep.max_residual <= planner.tol
-    assert set(rep.as_dict()) >= {'status', 'iterations', 'max_residual', 'time_ms'}
+    assert rep.status == 0 and isinstance(rep.message, str)
+    # a 6-joint arm on a reachable line: the pulled-back task geodesic, verified without a Newton step
+    assert rep.method == 'pullback' and rep.iterations == 0
+    assert 0 < rep.path_error <= planner.path_tolerance
+    assert rep.mesh_size >= 3 and rep.time_ms > 0 and np.isfinite(rep.max_residual)
+    assert set(rep.as_dict()) >= {'status', 'iterations', 'max_residual', 'time_ms', 'method', 'path_error'}
     path2 = planner.plan_joints(q_a, q_b)
     assert_allclose(path2.evaluate(s)[0], out[0], atol=1e-12)
 
@@ -255,3 +258,129 @@ def test_urdf_arm_with_singular_home_plans_ordinary_move_from_poses():
     s = np.linspace(0, 1, 101)
     dp, dr = U.tool_deviation(fkb, path.evaluate(s)[0], T_a, T_b, s)
     assert dp < 1e-6 and dr < 1e-5
+
+
+# ---------------------------------------------------------------------- the pulled-back geodesic
+# On a non-redundant arm (epsilon = 0) whose line + slerp stays reachable, the geodesic is that
+# task-space geodesic pulled back by IK (NOTES.md §4): the planner verifies it at the mesh nodes
+# instead of running Newton iterations. These tests compare it with exact oracles.
+KR6 = os.path.join(DATA, 'kr6_like.urdf')
+
+
+def _line_move(robot, q0, dp, rotvec):
+    from geodesic_planner.transforms import so3_exp
+    T_a = robot.fk(q0)
+    T_b = T_a.copy()
+    T_b[:3, 3] += dp
+    T_b[:3, :3] = T_b[:3, :3] @ so3_exp(np.asarray(rotvec, dtype=float))
+    return T_a, T_b
+
+
+def _tool_error(path, T_a, T_b, samples=2001):
+    from geodesic_planner.transforms import line_slerp, pose_error
+    s = np.linspace(0.0, 1.0, samples)
+    dp, dr = pose_error(path.ee_poses(s), line_slerp(T_a, T_b, s))
+    return float(dp.max()), float(dr.max())
+
+
+PULLBACK_CASES = {
+    'ur5e': ('ur5e', [0.3, -1.2, 1.4, -1.5, -1.4, 0.2], [0.2, -0.1, 0.15], [0.0, 0.0, np.pi / 6]),
+    'kr6_like.urdf': (KR6, [0.2, -0.6, 0.9, 0.3, 0.8, -0.2], [0.1, 0.12, -0.08], [0.2, -0.1, 0.3]),
+    'kr6 long': (KR6, [0.2, -0.6, 0.9, 0.3, 0.8, -0.2], [0.25, 0.2, -0.1], [0.4, -0.3, 0.5]),
+}
+
+
+@pytest.mark.parametrize('case', sorted(PULLBACK_CASES))
+@pytest.mark.parametrize('path_tolerance', [1e-9, 1e-7])
+def test_pullback_path_within_path_tolerance_of_line_slerp(case, path_tolerance):
+    """The returned path stays within path_tolerance (m and rad, the metric's units) of the exact
+    geodesic's tool path, line + slerp at the same s, everywhere (not only at the nodes)."""
+    name, q0, dp, rot = PULLBACK_CASES[case]
+    robot = load_robot(name)
+    planner = GeodesicPlanner(robot, path_tolerance=path_tolerance)
+    T_a, T_b = _line_move(robot, np.array(q0), dp, rot)
+    path = planner.plan(T_a, T_b, start_joints=q0)
+    rep = path.solver
+    assert rep.method == 'pullback' and rep.iterations == 0 and rep.status == 0
+    assert rep.path_error <= path_tolerance
+    e_pos, e_rot = _tool_error(path, T_a, T_b)
+    assert e_pos <= path_tolerance + 1e-11 and e_rot <= path_tolerance + 1e-11, (e_pos, e_rot)
+    # the metric speed of a geodesic is constant
+    speed = path.metric_speed(np.linspace(0, 1, 501))
+    assert np.ptp(speed) <= 1e-6 * speed.mean()
+
+
+def test_pullback_mesh_follows_the_tolerance():
+    """A tighter path_tolerance refines the mesh; the paper's 3R (start near full stretch) needs it."""
+    from geodesic_planner.request import load_request
+    req = load_request(os.path.join(os.path.dirname(DATA), os.pardir, 'msg_examples', 'paper_3r.yaml'))
+    loose = GeodesicPlanner(req.robot, path_tolerance=1e-6).plan(req.start, req.goal)
+    tight = GeodesicPlanner(req.robot, path_tolerance=1e-10).plan(req.start, req.goal)
+    assert loose.solver.method == tight.solver.method == 'pullback'
+    assert loose.solver.mesh_size < tight.solver.mesh_size
+    for path, tol in ((loose, 1e-6), (tight, 1e-10)):
+        e_pos, e_rot = _tool_error(path, req.start, req.goal)
+        assert e_pos <= tol + 1e-12 and e_rot <= tol + 1e-12, (tol, e_pos, e_rot)
+
+
+def test_interpolation_error_estimate_matches_the_true_midpoint_error():
+    """interpolation_error's estimate h²/24 (S'' - a) against the exact error at the midpoints (IK
+    of line + slerp there), measured in the metric."""
+    from geodesic_planner.geodesic import interpolation_error
+    from geodesic_planner.ik import gauss_newton_batch
+    from geodesic_planner.path import QuinticHermite
+    from geodesic_planner.transforms import line_slerp
+    robot = load_robot(KR6)
+    planner = GeodesicPlanner(robot)
+    q0 = np.array([0.2, -0.6, 0.9, 0.3, 0.8, -0.2])
+    T_a, T_b = _line_move(robot, q0, [0.25, 0.2, -0.1], [0.4, -0.3, 0.5])
+    q_a, q_b, _, _ = planner.resolve_ends(T_a, T_b, start_joints=q0)
+    s = np.linspace(0.0, 1.0, 5)                      # coarse on purpose: errors of 1e-8..1e-6
+    q, v, exact = planner.initial_guess(q_a, q_b, s)
+    assert exact
+    a = planner.equations.acceleration(q, v)
+    est, _ = interpolation_error(planner.equations, s, q, v, a)
+    mid = 0.5 * (s[1:] + s[:-1])
+    q_mid_spline = QuinticHermite(s, q, v, a)(mid, order=0)[0]
+    q_mid_true, res, _, _ = gauss_newton_batch(robot, line_slerp(T_a, T_b, mid), q_mid_spline)
+    assert res.max() < 1e-12
+    e = q_mid_spline - q_mid_true
+    G = planner.metric.tensor(robot, q_mid_true)
+    true = np.sqrt(np.einsum('ni,nij,nj->n', e, G, e))
+    assert true.min() > 1e-10                          # a real error to estimate
+    assert_allclose(est, true, rtol=0.2)
+
+
+def test_pullback_path_is_the_collocation_solution():
+    """The verified pull-back and an independent solve_bvp run on the same ends agree."""
+    from geodesic_planner.geodesic import solve_geodesic_bvp
+    robot = load_robot('ur5e')
+    planner = GeodesicPlanner(robot)
+    q0 = np.array([0.3, -1.2, 1.4, -1.5, -1.4, 0.2])
+    T_a, T_b = _line_move(robot, q0, [0.2, -0.1, 0.15], [0.0, 0.0, np.pi / 6])
+    path = planner.plan(T_a, T_b, start_joints=q0)
+    assert path.solver.method == 'pullback'
+    s0 = np.linspace(0.0, 1.0, 11)
+    q_lin = q0 + s0[:, None] * (path.q_goal - q0)
+    s, q, _, _, rep = solve_geodesic_bvp(planner.equations, q0, path.q_goal, s0, q_lin,
+                                         np.broadcast_to(path.q_goal - q0, q_lin.shape), tol=1e-8)
+    assert rep.status == 0 and rep.iterations >= 1
+    assert_allclose(path.evaluate(s, order=0)[0], q, atol=1e-7)
+
+
+def test_redundant_or_unreachable_lines_fall_back_to_collocation():
+    """epsilon > 0 (7 joints) is not a pull-back: solve_bvp runs (Newton iterations >= 1)."""
+    robot = load_robot('panda')
+    planner = GeodesicPlanner(robot)
+    q0 = robot.home + np.array([0.1, 0.1, -0.1, 0.2, 0.1, -0.1, 0.1])
+    T_a, T_b = _line_move(robot, q0, [0.1, -0.1, 0.1], [0.0, 0.2, 0.2])
+    rep = planner.plan(T_a, T_b, start_joints=q0).solver
+    assert rep.method == 'collocation' and rep.iterations >= 1 and rep.max_residual <= planner.tol
+    assert np.isnan(rep.path_error)
+
+
+def test_path_tolerance_validated():
+    with pytest.raises(RequestError, match='path_tolerance must be a number > 0'):
+        GeodesicPlanner(load_robot('ur5e'), path_tolerance=0.0)
+    with pytest.raises(RequestError, match='path_tolerance'):
+        GeodesicPlanner(load_robot('ur5e'), path_tolerance=float('nan'))
