@@ -21,6 +21,9 @@ DEFAULT_IK_TOLERANCE = 1e-3
 EXACT_RESIDUAL = 1e-9
 #: Convergence threshold on the step size (rad or m).
 STEP_TOL = 1e-13
+#: Gauss-Newton attempt from a given seed before damped least squares: iterations, step bound (rad or m).
+GN_ITERATIONS = 12
+GN_MAX_STEP = 0.5
 
 
 @dataclass(frozen=True)
@@ -30,7 +33,8 @@ class IKSolution:
     Attributes:
         q: joint positions (dof,), rad or m.
         success: residual within tolerance and q within the joint limits.
-        iterations: damped least-squares iterations used (all restarts).
+        iterations: damped least-squares iterations used (all restarts); 0 when the closed form
+            or Gauss-Newton from the seed reached the target exactly.
         residual: weighted embedding distance ‖Ω^½ (f(q) − f*)‖ (m-equivalent).
         position_error: distance of the reached tool position from the target, m.
         orientation_error: rotation angle between reached and target orientation, rad.
@@ -110,6 +114,7 @@ def gauss_newton_batch(
     orientation_weight: float = 1.0,
     max_iterations: int = 10,
     residual_tol: float = 1e-12,
+    max_step: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Batched undamped Gauss-Newton on the weighted embedding error, for seeds near a solution.
 
@@ -121,6 +126,8 @@ def gauss_newton_batch(
         targets: target transforms (N, 4, 4).
         seeds: initial joints (N, dof).
         residual_tol: stop when every weighted embedding residual is below this (m).
+        max_step: largest joint change per step (rad or m); longer steps are shortened (keeps a
+            far seed on its own branch). None: full steps.
     Returns:
         (q, residual, X, T): q (N, dof); residual (N,) at q; ``robot.generators(q)`` at q.
     """
@@ -140,7 +147,10 @@ def gauss_newton_batch(
         J = ((X @ T[:, None])[:, :, :3, :] * w).reshape(-1, n, 12)       # (N, dof, 12) = Jᵀ
         A = J @ J.transpose(0, 2, 1) + reg
         g = J @ e[..., None]
-        q = np.minimum(np.maximum(q - np.linalg.solve(A, g)[..., 0], robot.lower), robot.upper)
+        dq = np.linalg.solve(A, g)[..., 0]
+        if max_step is not None:
+            dq *= np.minimum(1.0, max_step / np.maximum(np.abs(dq).max(axis=1, keepdims=True), 1e-300))
+        q = np.minimum(np.maximum(q - dq, robot.lower), robot.upper)
     return q, np.sqrt(cost), X, T
 
 
@@ -282,6 +292,16 @@ def solve_ik(
                 closed.sort(key=lambda c: float(np.linalg.norm(c - q0)))
             preferred = [closed[0], q0, *closed[1:]]
             exact = _exact_solution(robot, T_target, closed[0], position_weight, orientation_weight)
+            if exact is not None:
+                return exact
+    if seed is not None and len(preferred) == 1:
+        # A seed near the target (the goal seeded with the start): undamped Gauss-Newton with
+        # bounded steps is enough and cheaper than damped least squares.
+        q_gn, res_gn, _, _ = gauss_newton_batch(robot, T_target[None], q0[None], position_weight=position_weight,
+                                                orientation_weight=orientation_weight, max_iterations=GN_ITERATIONS,
+                                                residual_tol=0.1 * EXACT_RESIDUAL, max_step=GN_MAX_STEP)
+        if res_gn[0] <= EXACT_RESIDUAL:
+            exact = _exact_solution(robot, T_target, q_gn[0], position_weight, orientation_weight)
             if exact is not None:
                 return exact
     rng = np.random.default_rng(rng_seed)

@@ -186,12 +186,13 @@ class GeodesicPlanner:
         robot = self.robot
         q_lin = q_a + s[:, None] * (q_b - q_a)
         v_lin = np.broadcast_to(q_b - q_a, q_lin.shape).copy()
-        if np.allclose(q_a, q_b):
+        if np.all(np.abs(q_b - q_a) <= 1e-8 + 1e-5 * np.abs(q_a)):   # np.allclose, without its overhead
             return q_lin, v_lin, True
         wp = self.metric.position_weight
         wo = self.metric.effective_orientation_weight
         T_a, T_b = robot.fk(np.stack([q_a, q_b]))
-        targets = line_slerp(T_a, T_b, s)
+        w_body = so3_log(T_a[:3, :3].T @ T_b[:3, :3])
+        targets = line_slerp(T_a, T_b, s, w_body)
         seeds = q_lin.copy() if seeds is None else np.array(seeds, dtype=float)
         if robot.closed_form_ik is not None:
             closed = nearest_branch(robot.closed_form_ik(targets), seeds)
@@ -212,7 +213,6 @@ class GeodesicPlanner:
             return q_lin, v_lin, False
         exact = bool(np.all(res < EXACT_GUESS_RESIDUAL)) and self.metric.epsilon == 0.0
         # q' = least-squares pull-back of the task velocity (exact on the task geodesic).
-        w_body = so3_log(T_a[:3, :3].T @ T_b[:3, :3])
         fdot = np.zeros((s.size, 4, 4))
         fdot[:, :3, :3] = targets[:, :3, :3] @ hat(w_body)
         fdot[:, :3, 3] = T_b[:3, 3] - T_a[:3, 3]

@@ -168,17 +168,19 @@ def transform_to_pose(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return T[..., :3, 3].copy(), matrix_to_quat(T[..., :3, :3])
 
 
-def line_slerp(T_a: np.ndarray, T_b: np.ndarray, s: np.ndarray) -> np.ndarray:
+def line_slerp(T_a: np.ndarray, T_b: np.ndarray, s: np.ndarray,
+               rotation_vector: np.ndarray | None = None) -> np.ndarray:
     """Task-space geodesic: straight line for position, constant-rate rotation (slerp).
 
     Args:
         T_a, T_b: 4x4 start and goal transforms.
         s: path parameter, shape (N,), in [0, 1].
+        rotation_vector: ``so3_log(R_aᵀ R_b)`` (rad, start frame) if already known.
     Returns:
         Transforms, shape (N, 4, 4).
     """
     s = np.asarray(s, dtype=float).reshape(-1)
-    w = so3_log(T_a[:3, :3].T @ T_b[:3, :3])
+    w = so3_log(T_a[:3, :3].T @ T_b[:3, :3]) if rotation_vector is None else rotation_vector
     out = np.zeros((s.size, 4, 4))
     out[:, :3, :3] = T_a[:3, :3] @ so3_exp(s[:, None] * w)
     out[:, :3, 3] = T_a[:3, 3] + s[:, None] * (T_b[:3, 3] - T_a[:3, 3])
