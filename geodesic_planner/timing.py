@@ -36,6 +36,7 @@ The path never changes: ``q(t) = path.q(s(t))``, ``dq/dt = q' sdot``,
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -137,17 +138,40 @@ class _PathSamples:
         return _PathSamples(merge(self.s, extra), merge(self.aL, a), merge(self.aR, a),
                             merge(self.bL, b), merge(self.bR, b), zeros, zeros, stop)
 
-    def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """First and second derivatives at ``s`` by cubic Hermite interpolation on each step."""
+    @functools.cached_property
+    def _coef(self) -> np.ndarray:
+        """Per-step cubic coefficients of q' and q'' in ``r = s - s_k``: (8, dof, n).
+
+        Rows 0..3: q' = p0 + r (p1 + r (p2 + r p3)); rows 4..7 the same for q''. The cubic
+        Hermite interpolant of the values and slopes at both ends of each step.
+        """
+        h = np.diff(self.s)
+        rows = []
+        for v0, m0, v1, m1 in ((self.aR[:-1], self.bR[:-1], self.aL[1:], self.bL[1:]),
+                               (self.bR[:-1], self.cR[:-1], self.bL[1:], self.cL[1:])):
+            v0, m0, v1, m1 = v0.T, m0.T, v1.T, m1.T
+            slope = (v1 - v0) / h
+            rows += [v0, m0, (3.0 * slope - 2.0 * m0 - m1) / h, (m0 + m1 - 2.0 * slope) / (h * h)]
+        return np.ascontiguousarray(np.stack(rows))
+
+    def interpolate_t(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """First and second derivatives at ``s`` (M,), transposed: each (dof, M).
+
+        Cubic Hermite interpolation on each step (the exact derivatives at the nodes as slopes).
+        """
+        coef = self._coef
         n = self.s.size - 1
         k = _clip(np.searchsorted(self.s, s, side='right') - 1, 0, n - 1)
-        h = (self.s[k + 1] - self.s[k])[:, None]
-        x = ((s - self.s[k])[:, None]) / h
-        x2, x3 = x * x, x * x * x
-        h00, h10, h01, h11 = 2 * x3 - 3 * x2 + 1, x3 - 2 * x2 + x, -2 * x3 + 3 * x2, x3 - x2
-        a = h00 * self.aR[k] + h10 * h * self.bR[k] + h01 * self.aL[k + 1] + h11 * h * self.bL[k + 1]
-        b = h00 * self.bR[k] + h10 * h * self.cR[k] + h01 * self.bL[k + 1] + h11 * h * self.cL[k + 1]
+        r = s - self.s[k]
+        c = coef.reshape(-1, n).take(k, axis=1).reshape(8, -1, k.size)
+        a = c[0] + r * (c[1] + r * (c[2] + r * c[3]))
+        b = c[4] + r * (c[5] + r * (c[6] + r * c[7]))
         return a, b
+
+    def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """First and second derivatives at ``s`` (M,) by cubic Hermite interpolation; each (M, dof)."""
+        a, b = self.interpolate_t(s)
+        return a.T, b.T
 
 
 #: Offset (in s) used to read the left-hand derivatives at a breakpoint.
@@ -255,6 +279,7 @@ def _refine_adaptively(path: Any, ps: _PathSamples, tol: float = 1e-5, max_round
     return ps
 
 
+
 def _topp(ps: _PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
     """Time-optimal x = sdot^2 at the nodes (rest at both ends and at corners), TOPP-RA-like.
 
@@ -359,53 +384,22 @@ class _TimeLaw:
     def duration(self) -> float:
         return self.t_star + 2.0 * self.tau
 
-    def _star(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """s*, sdot*, S1, S2 at times t (s* = 0 before 0 and span after T*)."""
-        T = self.t_star
-        n = self.u_k.size
-        span = float(self.s_k[-1])
-        tc = _clip(t, 0.0, T)
-        k = _clip(np.searchsorted(self.t_k, tc, side='right') - 1, 0, n - 1)
-        r = tc - self.t_k[k]
-        s0, v0, u = self.s_k[k], self.v_k[k], self.u_k[k]
-        s = s0 + v0 * r + u * r**2 / 2.0
-        sd = v0 + u * r
-        S1 = self.S1_k[k] + s0 * r + v0 * r**2 / 2.0 + u * r**3 / 6.0
-        S2 = self.S2_k[k] + self.S1_k[k] * r + s0 * r**2 / 2.0 + v0 * r**3 / 6.0 + u * r**4 / 24.0
-        after = t > T
-        if np.any(after):
-            e = np.where(after, t - T, 0.0)
-            S1T, S2T = self.S1_k[-1], self.S2_k[-1]
-            s = np.where(after, span, s)
-            sd = np.where(after, 0.0, sd)
-            S1 = np.where(after, S1T + span * e, S1)
-            S2 = np.where(after, S2T + S1T * e + span * e**2 / 2.0, S2)
-        before = t < 0.0
-        if np.any(before):
-            s, sd, S1, S2 = (np.where(before, 0.0, a) for a in (s, sd, S1, S2))
-        return s, sd, S1, S2
+    def segments(self) -> tuple[np.ndarray, ...]:
+        """s* as polynomial segments over all local times: (start, s0, v0, u, S1, S2), each (N+2,).
 
-    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """s, sdot, sddot, sdddot at local times t (clipped to [0, duration])."""
-        t = _clip(np.asarray(t, dtype=float), 0.0, self.duration)
-        tau = self.tau
-        c = t - tau
-        sp, vp, S1p, S2p = self._star(c + tau)
-        s0, v0, S10, S20 = self._star(c)
-        sm, vm, S1m, S2m = self._star(c - tau)
-        inv = 1.0 / tau**2
-        s = (S2p - 2.0 * S20 + S2m) * inv
-        sd = np.maximum((S1p - 2.0 * S10 + S1m) * inv, 0.0)
-        sdd = (sp - 2.0 * s0 + sm) * inv
-        sddd = (vp - 2.0 * v0 + vm) * inv
-        s = self.s_start + _clip(s, 0.0, float(self.s_k[-1]))
-        # Exact ends: at rest, at s_start and s_end.
-        end = t >= self.duration
-        start = t <= 0.0
-        s = np.where(end, self.s_end, np.where(start, self.s_start, s))
-        zero = end | start
-        sd, sdd, sddd = (np.where(zero, 0.0, a) for a in (sd, sdd, sddd))
-        return s, sd, sdd, sddd
+        Segment 0 (before time 0; all zero) is the rest before the start, segments 1..N the steps
+        of s*, segment N+1 (from T*) the rest at ``span`` after the end; on a segment starting at
+        ``start``, with ``r = t - start``: ``s* = s0 + v0 r + u r^2 / 2`` and its integrals
+        ``S1 + s0 r + ...``, ``S2 + S1 r + ...``.
+        """
+        z = np.zeros(1)
+        span = self.s_k[-1:]
+        return (np.concatenate([z, self.t_k]),
+                np.concatenate([z, self.s_k[:-1], span]),
+                np.concatenate([z, self.v_k[:-1], z]),
+                np.concatenate([z, self.u_k, z]),
+                np.concatenate([z, self.S1_k]),
+                np.concatenate([z, self.S2_k]))
 
 
 def _build_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -> _TimeLaw:
@@ -427,10 +421,20 @@ def _build_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -> _TimeLaw
 
 @dataclass(frozen=True, eq=False)
 class _PiecewiseLaw:
-    """Rest-to-rest laws one after the other (the motion rests at corners of the path)."""
+    """Rest-to-rest laws one after the other (the motion rests at corners of the path).
+
+    All pieces are evaluated together: their ``s*`` segments sit in one table, searched by the key
+    ``i * key_step + local time`` (piece ``i``; ``key_step`` exceeds twice every piece's duration,
+    so the pieces' key ranges do not overlap); polynomials are evaluated in local time.
+    """
 
     laws: tuple[_TimeLaw, ...]
     t_offsets: np.ndarray  # (len(laws) + 1,) start time of each law; the last is the total duration
+    key_step: float = 0.0
+    seg_key: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (S,) segment starts (keys)
+    seg: np.ndarray = field(default_factory=lambda: np.zeros((5, 0)))  # (5, S): start, s0, v0, u, S1
+    seg_S2: np.ndarray = field(default_factory=lambda: np.zeros(0))    # (S,)
+    law_data: np.ndarray = field(default_factory=lambda: np.zeros((5, 0)))  # (5, L): tau, dur, s_start, span, s_end
 
     @property
     def duration(self) -> float:
@@ -440,24 +444,58 @@ class _PiecewiseLaw:
     def t_star(self) -> float:
         return float(sum(law.t_star for law in self.laws))
 
-    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def evaluate(self, t: np.ndarray, jerk: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """s, sdot, sddot and (if ``jerk``) sdddot at times t (M,) in [0, duration] (clipped)."""
         t = np.asarray(t, dtype=float)
-        if len(self.laws) == 1:
-            return self.laws[0].evaluate(t)
-        # Times within round-off of a rest snap onto it (exact rest there).
         offs = self.t_offsets
-        j = _clip(np.searchsorted(offs, t), 1, offs.size - 1)
-        near = np.where(np.abs(t - offs[j - 1]) <= np.abs(t - offs[j]), offs[j - 1], offs[j])
-        t = np.where(np.abs(t - near) <= 1e-12 * max(1.0, self.duration), near, t)
-        idx = _clip(np.searchsorted(self.t_offsets, t, side='right') - 1, 0, len(self.laws) - 1)
-        out = [np.empty(t.shape) for _ in range(4)]
-        for i in np.unique(idx):
-            sel = idx == i
-            law = self.laws[i]
-            local = np.where(t[sel] >= offs[i + 1], law.duration, t[sel] - offs[i])
-            for arr, val in zip(out, law.evaluate(local)):
-                arr[sel] = val
-        return out[0], out[1], out[2], out[3]
+        nl = len(self.laws)
+        if nl == 1:
+            local = _clip(t, 0.0, self.duration)
+            tau, dur, s_start, span, s_end = self.law_data[:, 0].tolist()
+            key_off = 0.0
+        else:
+            # Times within round-off of a rest snap onto it (exact rest there).
+            j = _clip(np.searchsorted(offs, t), 1, offs.size - 1)
+            near = np.where(np.abs(t - offs[j - 1]) <= np.abs(t - offs[j]), offs[j - 1], offs[j])
+            t = np.where(np.abs(t - near) <= 1e-12 * max(1.0, self.duration), near, t)
+            idx = _clip(np.searchsorted(offs, t, side='right') - 1, 0, nl - 1)
+            tau, dur, s_start, span, s_end = self.law_data.take(idx, axis=1)
+            local = _clip(np.where(t >= offs.take(idx + 1), dur, t - offs.take(idx)), 0.0, dur)
+            key_off = idx * self.key_step
+        # s* and its integrals at local - j tau, j = 0, 1, 2 (the smoothed law is their second
+        # central difference: a triangular kernel of half-width tau).
+        c = local - tau
+        q = np.concatenate([local, c, c - tau])
+        m = local.size
+        key = q + (np.concatenate([key_off] * 3) if nl > 1 else key_off)
+        k = np.searchsorted(self.seg_key, key, side='right') - 1
+        start, s0, v0, u, S1 = self.seg.take(k, axis=1)
+        S2 = self.seg_S2.take(k)
+        r = q - start
+        ru = r * u
+        S2 = S2 + r * (S1 + r * (0.5 * s0 + r * (v0 / 6.0 + ru / 24.0)))
+        S1 = S1 + r * (s0 + r * (0.5 * v0 + ru / 6.0))
+        s0 = s0 + r * (v0 + 0.5 * ru)
+        inv = 1.0 / (tau * tau)
+
+        def second_difference(y: np.ndarray) -> np.ndarray:
+            return (y[:m] - 2.0 * y[m:2 * m] + y[2 * m:]) * inv
+
+        s = s_start + _clip(second_difference(S2), 0.0, span)
+        sd = np.maximum(second_difference(S1), 0.0)
+        sdd = second_difference(s0)
+        sddd = second_difference(v0 + ru) if jerk else None
+        # Exact ends: at rest, at s_start and s_end.
+        end = local >= dur
+        start_ = local <= 0.0
+        s = np.where(end, s_end, np.where(start_, s_start, s))
+        zero = end | start_
+        if np.any(zero):
+            sd, sdd = np.where(zero, 0.0, sd), np.where(zero, 0.0, sdd)
+            if sddd is not None:
+                sddd = np.where(zero, 0.0, sddd)
+        return s, sd, sdd, sddd
 
 
 def _build_piecewise_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -> _PiecewiseLaw:
@@ -465,7 +503,18 @@ def _build_piecewise_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -
     rests = np.flatnonzero(x <= 0.0)
     laws = [_build_law(s_nodes[i:j + 1], x[i:j + 1], smoothing) for i, j in zip(rests[:-1], rests[1:])]
     offsets = np.concatenate([[0.0], np.cumsum([law.duration for law in laws])])
-    return _PiecewiseLaw(tuple(laws), offsets)
+    durations = np.array([law.duration for law in laws])
+    # A power of two: i * key_step is exact; local times lie in [-2 tau, duration] within +-key_step / 4.
+    key_step = float(2.0 ** math.ceil(math.log2(4.0 * max(float(durations.max()), 1e-300))))
+    parts = [law.segments() for law in laws]
+    # Keys: piece i's leading rest from (i - 1/2) key_step (the first from -inf), its steps and
+    # trailing rest from i key_step + their local start times.
+    seg_key = np.concatenate([np.concatenate([[-np.inf if i == 0 else (i - 0.5) * key_step],
+                                              p[0][1:] + i * key_step]) for i, p in enumerate(parts)])
+    seg = np.stack([np.concatenate([p[c] for p in parts]) for c in range(5)])
+    seg_S2 = np.concatenate([p[5] for p in parts])
+    law_data = np.array([[law.tau, law.duration, law.s_start, float(law.s_k[-1]), law.s_end] for law in laws]).T
+    return _PiecewiseLaw(tuple(laws), offsets, key_step, seg_key, seg, seg_S2, np.ascontiguousarray(law_data))
 
 
 @dataclass(frozen=True, eq=False)
@@ -599,10 +648,10 @@ def _at_path_parameter(law: _PiecewiseLaw, t_grid: np.ndarray, s_grid: np.ndarra
     w = np.where(s1 > s0, (targets - s0) / np.where(s1 > s0, s1 - s0, 1.0), 0.0)
     t = t_grid[j - 1] + w * (t_grid[j] - t_grid[j - 1])
     for _ in range(4):  # Newton on s(t) = target
-        s, sd, _, _ = law.evaluate(t)
+        s, sd, _, _ = law.evaluate(t, jerk=False)
         step = np.where(sd > 0, (s - targets) / np.where(sd > 0, sd, 1.0), 0.0)
         t = _clip(t - step, t_grid[j - 1], t_grid[j])
-    _, sd, sdd, _ = law.evaluate(t)
+    _, sd, sdd, _ = law.evaluate(t, jerk=False)
     return sd, sdd
 
 
@@ -675,16 +724,22 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
 
     # Dense check of the smoothed law against the full limits; stretch time if needed.
     m = int(check_samples) if check_samples is not None else max(4000, 20 * ps.s.size)
-    t_chk = np.linspace(0.0, law.duration, max(m, 10))
-    t_chk = np.union1d(t_chk, law.t_offsets)
-    s, sd, sdd, _ = law.evaluate(t_chk)
+    t_grid = np.linspace(0.0, law.duration, max(m, 10))
+    if len(law.laws) > 1:
+        t_grid = np.union1d(t_grid, law.t_offsets)
+    s_grid, sd, sdd, _ = law.evaluate(t_grid, jerk=False)
     # Also samples uniform in s (mapped back to t): a long law can cross a stretch of the path
-    # in a fraction of its duration, where samples uniform in t are sparse.
-    t_chk = np.union1d(t_chk, np.interp(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS), s, t_chk))
-    s, sd, sdd, _ = law.evaluate(t_chk)
-    a, b = ps.interpolate(s)
-    rv_t = np.max(np.abs(a * sd[:, None]) / vmax, axis=1)
-    ra_t = np.max(np.abs(a * sdd[:, None] + b * (sd**2)[:, None]) / amax, axis=1)
+    # in a fraction of its duration, where samples uniform in t are sparse. (Those falling on
+    # a grid time are already there.)
+    t_x = np.unique(np.interp(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS), s_grid, t_grid))
+    t_x = t_x[t_grid.take(_clip(np.searchsorted(t_grid, t_x), 0, t_grid.size - 1)) != t_x]
+    s_x, sd_x, sdd_x, _ = law.evaluate(t_x, jerk=False)
+    s = np.concatenate([s_grid, s_x])
+    sd = np.concatenate([sd, sd_x])
+    sdd = np.concatenate([sdd, sdd_x])
+    a, b = ps.interpolate_t(s)
+    rv_t = np.max(np.abs(a * sd) / vmax[:, None], axis=0)
+    ra_t = np.max(np.abs(a * sdd + b * (sd * sd)) / amax[:, None], axis=0)
     rv, ra = float(rv_t.max()), float(ra_t.max())
     # The samples closest to a limit are verified with the exact path derivatives.
     need = np.maximum(rv_t, np.sqrt(ra_t))
@@ -697,7 +752,7 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
     # (Rests at corners need no check: sdot = sddot = 0 there.)
     inner = np.flatnonzero(((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1)) & ~ps.stop)
     if inner.size:
-        sd_b, sdd_b = _at_path_parameter(law, t_chk, s, ps.s[inner])
+        sd_b, sdd_b = _at_path_parameter(law, t_grid, s_grid, ps.s[inner])
         for aa, bb in ((ps.aL[inner], ps.bL[inner]), (ps.aR[inner], ps.bR[inner])):
             rv = max(rv, float(np.max(np.abs(aa * sd_b[:, None]) / vmax)))
             ra = max(ra, float(np.max(np.abs(aa * sdd_b[:, None] + bb * (sd_b**2)[:, None]) / amax)))
