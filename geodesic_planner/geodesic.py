@@ -309,13 +309,13 @@ class GeodesicPath(JointPath):
     def __init__(self, equations: GeodesicEquations, s_nodes: np.ndarray, q_nodes: np.ndarray,
                  v_nodes: np.ndarray, solver: SolverReport,
                  ik_start: object | None = None, ik_goal: object | None = None,
-                 a_nodes: np.ndarray | None = None) -> None:
+                 a_nodes: np.ndarray | None = None, spline: QuinticHermite | None = None) -> None:
         self.equations = equations
         self.robot = equations.robot
         self.metric = equations.metric
         self.s_nodes, self.q_nodes, self.v_nodes = s_nodes, q_nodes, v_nodes
         self.a_nodes = equations.acceleration(q_nodes, v_nodes) if a_nodes is None else a_nodes
-        self._spline = QuinticHermite(s_nodes, q_nodes, v_nodes, self.a_nodes)
+        self._spline = QuinticHermite(s_nodes, q_nodes, v_nodes, self.a_nodes) if spline is None else spline
         self.solver = solver
         self.ik_start = ik_start
         self.ik_goal = ik_goal
@@ -410,7 +410,7 @@ def refine_mesh(s: np.ndarray, rms: np.ndarray, tol: float) -> np.ndarray:
 
 
 def interpolation_error(equations: GeodesicEquations, s: np.ndarray, q: np.ndarray, v: np.ndarray,
-                        a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                        a: np.ndarray, spline: QuinticHermite | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Error of the quintic Hermite path through exact geodesic nodes, per mesh interval.
 
     Between exact nodes (q, q', q'' = a) the spline's error is e(t) ≈ c (t (t − h))³ with its
@@ -420,12 +420,13 @@ def interpolation_error(equations: GeodesicEquations, s: np.ndarray, q: np.ndarr
 
     Args:
         s: mesh (m,); q, v, a: exact positions, q', q'' at the mesh, (m, dof).
+        spline: ``QuinticHermite(s, q, v, a)`` if already built.
     Returns:
         (path_error (m - 1,) in m, relative residual (m - 1,) ‖S'' − a‖∞ / (1 + ‖a‖∞) at the midpoints).
     """
     h = np.diff(s)
     mid = s[:-1] + 0.5 * h
-    qm, vm, am_spline = QuinticHermite(s, q, v, a)(mid, order=2)
+    qm, vm, am_spline = (QuinticHermite(s, q, v, a) if spline is None else spline)(mid, order=2)
     am = equations.acceleration(qm, vm)
     diff = am_spline - am
     e = (h * h / 24.0)[:, None] * diff

@@ -112,4 +112,4 @@ class QuinticHermite:
 
     def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]:
         """Values and derivatives up to ``order`` (<= 2) at xs (k,): list of (k, d) arrays."""
-        return list(evaluate_polynomials(self._coefficients, self.x, xs))[:order + 1]
+        return list(evaluate_polynomials(self._coefficients, self.x, xs, order=min(order, 2)))

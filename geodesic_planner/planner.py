@@ -54,6 +54,14 @@ PULLBACK_ROUNDS = 4
 PULLBACK_AIM = 0.1
 
 
+def split_intervals(s: np.ndarray, parts: np.ndarray) -> np.ndarray:
+    """Mesh s (m,) with interval i split into ``parts[i]`` (>= 1) equal parts."""
+    starts = np.cumsum(parts) - parts
+    k = np.arange(int(parts.sum())) - np.repeat(starts, parts)        # index within the interval
+    frac = k / np.repeat(parts, parts)
+    return np.concatenate([np.repeat(s[:-1], parts) + np.repeat(np.diff(s), parts) * frac, s[-1:]])
+
+
 def snap_same(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
     """q_b, or exactly q_a when the two differ only by round-off (a zero-length path)."""
     q_b = np.array(q_b, dtype=float)
@@ -310,22 +318,22 @@ class GeodesicPlanner:
                 raise BVPError(f'geodesic solver exceeded its time limit of {self.time_limit:g} s for '
                                f'robot {self.robot.name!r}', status=-2)
             a = eq.acceleration(q, v)
-            err, res = interpolation_error(eq, s, q, v, a)
+            spline = QuinticHermite(s, q, v, a)
+            err, res = interpolation_error(eq, s, q, v, a, spline)
             worst = float(err.max())
             if worst <= self.path_tolerance:
                 rep = SolverReport(0, 'the pulled-back task-space geodesic solves the geodesic equations '
                                    'at every node (verified, no Newton step needed)', 0, float(res.max()),
                                    int(s.size), (time.perf_counter() - t0) * 1e3, 0.0, 'pullback', worst)
-                return GeodesicPath(eq, s, q, v, rep, ik_a, ik_b, a)
+                return GeodesicPath(eq, s, q, v, rep, ik_a, ik_b, a, spline)
             # The error scales like h^6: split each interval once into the parts that bring it
             # to PULLBACK_AIM of the tolerance (the estimate is not yet asymptotic on coarse meshes).
             parts = np.clip(np.ceil((err / (PULLBACK_AIM * self.path_tolerance)) ** (1.0 / 6.0)),
                             1, 64).astype(int)
             if s.size + int(parts.sum()) - parts.size > self.max_nodes:
                 return None
-            s_new = np.concatenate([s[i] + (s[i + 1] - s[i]) * np.arange(k) / k
-                                    for i, k in enumerate(parts)] + [s[-1:]])
-            seeds = QuinticHermite(s, q, v, a)(s_new, order=0)[0]
+            s_new = split_intervals(s, parts)
+            seeds = spline(s_new, order=0)[0]
             q, v, exact = self.initial_guess(q_a, q_b, s_new, seeds)
             s = s_new
             if not exact:
@@ -350,8 +358,7 @@ class GeodesicPlanner:
             parts = np.clip(np.ceil(1.15 * (rms / target) ** (1.0 / 3.0)), 1, 64).astype(int)
             if s.size + int(parts.sum()) - parts.size > self.max_nodes // 2:
                 break
-            s_new = np.concatenate([s[i] + (s[i + 1] - s[i]) * np.arange(k) / k
-                                    for i, k in enumerate(parts)] + [s[-1:]])
+            s_new = split_intervals(s, parts)
             seeds = QuinticHermite(s, q, v, a)(s_new, order=0)[0]
             q, v, exact = self.initial_guess(q_a, q_b, s_new, seeds)
             s = s_new

@@ -170,9 +170,12 @@ def _cubic_coefficients(t: np.ndarray, q: np.ndarray, dq: np.ndarray) -> np.ndar
     return c
 
 
-def evaluate_polynomials(c: np.ndarray, t: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Evaluate piecewise polynomials (N-1, 6, dof) at times (M,): position, velocity, acceleration."""
-    seg = np.clip(np.searchsorted(t, times, side='right') - 1, 0, len(t) - 2)
+def evaluate_polynomials(c: np.ndarray, t: np.ndarray, times: np.ndarray, order: int = 2) -> tuple[np.ndarray, ...]:
+    """Evaluate piecewise polynomials (N-1, 6, dof) at times (M,): position, velocity, acceleration.
+
+    ``order`` < 2 returns only the first ``order + 1`` of them.
+    """
+    seg = np.minimum(np.maximum(np.searchsorted(t, times, side='right') - 1, 0), len(t) - 2)
     tau = (times - t[seg])[:, None]
     cs = c[seg]  # (M, 6, dof)
     pos = cs[:, 5]
@@ -180,11 +183,11 @@ def evaluate_polynomials(c: np.ndarray, t: np.ndarray, times: np.ndarray) -> tup
     acc = 20.0 * cs[:, 5]
     for k in (4, 3, 2, 1, 0):  # Horner over the 6 coefficients (fixed, not per sample)
         pos = pos * tau + cs[:, k]
-        if k >= 1:
+        if k >= 1 and order >= 1:
             vel = vel * tau + k * cs[:, k]
-        if k >= 2:
+        if k >= 2 and order >= 2:
             acc = acc * tau + k * (k - 1) * cs[:, k]
-    return pos, vel, acc
+    return (pos, vel, acc)[:order + 1]
 
 
 def resample(

@@ -198,6 +198,9 @@ def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return dp, np.arctan2(np.linalg.norm(sv, axis=-1), c)  # accurate for small and large angles
 
 
+_LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
+
+
 def check_transform(T: object, what: str) -> np.ndarray:
     """Validate a 4x4 homogeneous transform (finite, orthonormal rotation); returns a float array.
 
@@ -216,6 +219,6 @@ def check_transform(T: object, what: str) -> np.ndarray:
     err = float(np.abs(R.T @ R - np.eye(3)).max())
     if err > 1e-6 or np.linalg.det(R) < 0:
         raise RequestError(f'{what}: rotation part is not a proper rotation (|RᵀR − I| = {err:.3g})')
-    if not np.allclose(arr[3], [0, 0, 0, 1]):
+    if not np.all(np.abs(arr[3] - _LAST_ROW) <= 1e-8 + 1e-5 * _LAST_ROW):   # np.allclose, cheaper
         raise RequestError(f'{what}: last row must be [0, 0, 0, 1]')
     return arr
