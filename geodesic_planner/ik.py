@@ -21,6 +21,12 @@ DEFAULT_IK_TOLERANCE = 1e-3
 EXACT_RESIDUAL = 1e-9
 #: Convergence threshold on the step size (rad or m).
 STEP_TOL = 1e-13
+#: A damped least-squares row stops when its cost fell by less than this fraction over the
+#: last STAGNATION_WINDOW iterations (a local minimum, or the nearest reachable pose).
+STAGNATION = 1e-2
+STAGNATION_WINDOW = 10
+#: Largest joint change of one damped least-squares step (rad or m): long steps are shortened.
+DLS_MAX_STEP = 0.5
 #: Gauss-Newton attempt from a given seed before damped least squares: iterations, step bound (rad or m).
 GN_ITERATIONS = 12
 GN_MAX_STEP = 0.5
@@ -65,6 +71,10 @@ def dls_batch(
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """Batched Levenberg-Marquardt on the weighted embedding error.
 
+    Each row stops on its own when it has converged or stagnates (a local minimum: less than
+    STAGNATION relative decrease of its cost over STAGNATION_WINDOW iterations); only the rows
+    still running are computed.
+
     Args:
         targets: target transforms (N, 4, 4).
         seeds: initial joints (N, dof).
@@ -79,28 +89,39 @@ def dls_batch(
     X, T = robot.generators(q)
     e = embed12(T) * w - f_star
     cost = np.einsum('ni,ni->n', e, e)
+    ref_cost = cost.copy()
+    active = np.ones(q.shape[0], dtype=bool)
+    eye = np.eye(n)
     it = 0
     for it in range(1, max_iterations + 1):
-        J = embed12(X @ T[:, None]).transpose(0, 2, 1) * w[:, None]   # (N, 12, dof)
-        JtJ = np.einsum('nki,nkj->nij', J, J)
-        g = np.einsum('nki,nk->ni', J, e)
+        i = np.flatnonzero(active)
+        Xi, Ti, ei, ci, li = X[i], T[i], e[i], cost[i], lam[i]
+        J = embed12(Xi @ Ti[:, None]).transpose(0, 2, 1) * w[:, None]   # (k, 12, dof)
+        JtJ = J.transpose(0, 2, 1) @ J
+        g = np.einsum('nki,nk->ni', J, ei)
         scale = np.einsum('nii->ni', JtJ).max(axis=1) + 1e-12
-        A = JtJ + (lam * scale)[:, None, None] * np.eye(n)
+        A = JtJ + (li * scale)[:, None, None] * eye
         dq = -np.linalg.solve(A, g[..., None])[..., 0]
-        q_new = np.clip(q + dq, robot.lower, robot.upper)  # projected step: stay within limits
-        dq = q_new - q
+        dq *= np.minimum(1.0, DLS_MAX_STEP / np.maximum(np.abs(dq).max(axis=1, keepdims=True), 1e-300))
+        q_new = np.minimum(np.maximum(q[i] + dq, robot.lower), robot.upper)  # stay within limits
+        dq = q_new - q[i]
         X_new, T_new = robot.generators(q_new)
-        e_new = embed12(T_new) * w - f_star
+        e_new = embed12(T_new) * w - f_star[i]
         cost_new = np.einsum('ni,ni->n', e_new, e_new)
-        better = cost_new <= cost
-        q = np.where(better[:, None], q_new, q)
-        X = np.where(better[:, None, None, None], X_new, X)
-        T = np.where(better[:, None, None], T_new, T)
-        e = np.where(better[:, None], e_new, e)
+        better = cost_new <= ci
+        q[i] = np.where(better[:, None], q_new, q[i])
+        X[i] = np.where(better[:, None, None, None], X_new, Xi)
+        T[i] = np.where(better[:, None, None], T_new, Ti)
+        e[i] = np.where(better[:, None], e_new, ei)
         step = np.abs(dq).max(axis=1)
-        cost = np.where(better, cost_new, cost)
-        lam = np.where(better, np.maximum(lam * 0.1, 1e-12), lam * 10.0)
-        if np.all((step < STEP_TOL) | (cost < 1e-26) | (better & (step < 1e-10))):
+        cost[i] = np.where(better, cost_new, ci)
+        lam[i] = np.where(better, np.maximum(li * 0.1, 1e-12), li * 10.0)
+        done = (step < STEP_TOL) | (cost[i] < 1e-26) | (better & (step < 1e-10))
+        if it % STAGNATION_WINDOW == 0:
+            done |= cost[i] > (1.0 - STAGNATION) * ref_cost[i]
+            ref_cost[i] = cost[i]
+        active[i[done]] = False
+        if not active.any():
             break
     return q, np.sqrt(cost), it
 

@@ -1312,11 +1312,10 @@ def test_regression_same_pose_self_motion() -> None:
     assert path.timed().duration == 0.0
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason='BUG: IK on the panda stops at an embedding residual of 5.5e-4 for an exactly '
-                   'reachable pose (fk of joints on their limits); arms with >= 6 joints are meant to reach '
-                   'a pose exactly (commit 1be4ba7)')
 def test_regression_ik_inexact_at_limits() -> None:
+    """Was a strict xfail: IK on the panda stopped at an embedding residual of 5.5e-4 for an exactly
+    reachable pose (fk of joints on their limits). Bounded damped least-squares steps (DLS_MAX_STEP)
+    no longer pin the iterate against the limits on the first step."""
     from geodesic_planner.ik import solve_ik
     robot = load_robot('panda')
     sol = solve_ik(robot, robot.fk(np.array(PANDA_AT_LIMITS)))
