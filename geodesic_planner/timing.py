@@ -280,6 +280,159 @@ def _refine_adaptively(path: Any, ps: _PathSamples, tol: float = 1e-5, max_round
 
 
 
+#: Rounds of the row-guessing passes of _topp before the remaining steps use all rows.
+_PASS_ROUNDS = 6
+
+
+def _pick(values: np.ndarray, cols: np.ndarray) -> list[float]:
+    """values[k, cols[k]] for each step k, as floats."""
+    return values[np.arange(cols.size), cols].tolist()
+
+
+#: Iterations of the vectorised active-row guess of the TOPP passes.
+_GUESS_ITERATIONS = 3
+
+
+def _backward_guess(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows likely to attain the minimum in each step of the backward pass, two per step, (n,) each.
+
+    With one row per step, ``h_k = min(static_k, a_k h_{k+1} + b_k)`` has a closed form (a_k > 0):
+    ``h_k = e^{-L_k} (min_{m >= k} (e^{L_m} static_m + C_m) - C_k)``, ``L_k = sum_{i<k} log a_i``,
+    ``C_k = sum_{i<k} e^{L_i} b_i`` (static_n = 0). Starting from the rows lowest at h = 0, the
+    rows lowest at that h are taken, a couple of times. Only a guess: it is verified after the pass.
+    """
+    n = static.size
+    steps = np.arange(n)
+    g = np.argmin(B, axis=1)
+    first = g
+    st = np.append(static, 0.0)
+    with np.errstate(all='ignore'):
+        for _ in range(_GUESS_ITERATIONS):
+            a, b = A[steps, g], B[steps, g]
+            L = np.concatenate([[0.0], np.cumsum(np.log(a))])
+            eL = np.exp(L)
+            C = np.concatenate([[0.0], np.cumsum(eL[:-1] * b)])
+            M = np.minimum.accumulate((eL * st + C)[::-1])[::-1]
+            h = (M - C) / eL
+            if not np.all(np.isfinite(h)):
+                break
+            g = np.argmin(A * h[1:, None] + B, axis=1)
+    return g, first
+
+
+def _forward_guess(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Rows likely to attain the minimum in each step of the forward pass, two per step, (n,) each.
+
+    With one row per step, ``x_{k+1} = min(hi_{k+1}, p_k x_k + q_k)`` (p = 1 + 2 h alpha,
+    q = 2 h d) has a closed form for p > 0: ``x_j = e^{L_j} (C_j + min_{m <= j} (e^{-L_m} hi_m -
+    C_m))``, ``L_j = sum_{i<j} log p_i``, ``C_j = sum_{i<j} e^{-L_{i+1}} q_i`` (hi_0 = 0).
+    Starting from the rows lowest at x = hi, the rows lowest at that x are taken, a couple of times.
+    """
+    n = two_h.size
+    steps = np.arange(n)
+    g = np.argmin(alpha * hi[:-1, None] + d, axis=1)
+    first = g
+    top = hi.copy()
+    top[0] = 0.0
+    with np.errstate(all='ignore'):
+        for _ in range(_GUESS_ITERATIONS):
+            p = np.maximum(1.0 + two_h * alpha[steps, g], 1e-6)
+            q = two_h * d[steps, g]
+            L = np.concatenate([[0.0], np.cumsum(np.log(p))])
+            eL = np.exp(L)
+            C = np.concatenate([[0.0], np.cumsum(q / eL[1:])])
+            x = eL * (C + np.minimum.accumulate(top / eL - C))
+            if not np.all(np.isfinite(x)):
+                break
+            g = np.argmin(alpha * x[:-1, None] + d, axis=1)
+    return g, first
+
+
+def _backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> list[float]:
+    """hi_k = min(static_k, min_j A_kj hi_{k+1} + B_kj) for k = n-1 .. 0, hi_n = 0; (n + 1) floats.
+
+    The recursion is sequential, so it runs on plain floats, over two guessed rows per step; the
+    result is then checked against all rows at once. A step where the recursion holds with all
+    rows, after steps that all hold, has exactly the value a loop over all rows gives (the same
+    floating-point operations), so the loop resumes at the first step that fails, with the row
+    lowest there (and the previous guess) as the guesses. After a few rounds the remaining steps use
+    every row.
+    """
+    n = static.size
+    st = static.tolist()
+    hi = [0.0] * (n + 1)
+    g0, g1 = _backward_guess(A, B, static)
+    start = n - 1
+    for _ in range(_PASS_ROUNDS):
+        a0, b0, a1, b1 = _pick(A, g0), _pick(B, g0), _pick(A, g1), _pick(B, g1)
+        h = hi[start + 1]
+        for k in range(start, -1, -1):
+            h = min(st[k], a0[k] * h + b0[k], a1[k] * h + b1[k])
+            hi[k] = h
+        hv = np.array(hi)
+        with np.errstate(invalid='ignore', over='ignore'):
+            vals = A * hv[1:, None] + B
+        act = np.argmin(vals, axis=1)
+        bad = np.flatnonzero(np.minimum(static, vals[np.arange(n), act]) != hv[:-1])
+        if bad.size == 0:
+            return hi
+        start = int(bad[-1])
+        g0, g1 = act, g0
+    A_l, B_l = A[:start + 1].tolist(), B[:start + 1].tolist()
+    h = hi[start + 1]
+    for k in range(start, -1, -1):
+        h = min([st[k]] + [ak * h + bk for ak, bk in zip(A_l[k], B_l[k])])
+        hi[k] = h
+    return hi
+
+
+def _forward_pass(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: list[float]) -> list[float]:
+    """Greedy forward pass x_{k+1} = clip(x_k + 2 h_k u_k, 0, hi_{k+1}), x_0 = 0; (n + 1) floats.
+
+    ``u_k = min((hi_{k+1} - x_k) / (2 h_k), min_j alpha_kj x_k + d_kj)``; guessed rows checked
+    against all rows, as in :func:`_backward_pass`.
+    """
+    n = two_h.size
+    hi_np = np.array(hi)
+    hi1 = hi_np[1:]
+    th, hi1_l = two_h.tolist(), hi[1:]
+    x = [0.0] * (n + 1)
+    g0, g1 = _forward_guess(alpha, d, two_h, hi_np)
+    start = 0
+    for _ in range(_PASS_ROUNDS):
+        a0, d0, a1, d1 = _pick(alpha, g0), _pick(d, g0), _pick(alpha, g1), _pick(d, g1)
+        xk = x[start]
+        for k in range(start, n):
+            u = min((hi1_l[k] - xk) / th[k], a0[k] * xk + d0[k], a1[k] * xk + d1[k])
+            xk = min(max(xk + th[k] * u, 0.0), hi1_l[k])
+            x[k + 1] = xk
+        xv = np.array(x)
+        x0 = xv[:-1]
+        with np.errstate(invalid='ignore', over='ignore'):
+            vals = alpha * x0[:, None] + d
+        act = np.argmin(vals, axis=1)
+        u = np.minimum((hi1 - x0) / two_h, vals[np.arange(n), act])
+        bad = np.flatnonzero(np.minimum(np.maximum(x0 + two_h * u, 0.0), hi1) != xv[1:])
+        if bad.size == 0:
+            return x
+        start = int(bad[0])
+        g0, g1 = act, g0
+    al_l, d_l = alpha.tolist(), d.tolist()
+    xk = x[start]
+    for k in range(start, n):
+        u = min([(hi1_l[k] - xk) / th[k]] + [ak * xk + dk for ak, dk in zip(al_l[k], d_l[k])])
+        xk = min(max(xk + th[k] * u, 0.0), hi1_l[k])
+        x[k + 1] = xk
+    return x
+
+
+@functools.lru_cache(maxsize=16)
+def _pairs(rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (i, j), i < j, of ``rows`` rows."""
+    return np.triu_indices(rows, 1)
+
+
 def _topp(ps: _PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
     """Time-optimal x = sdot^2 at the nodes (rest at both ends and at corners), TOPP-RA-like.
 
@@ -315,11 +468,11 @@ def _topp(ps: _PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
         alpha = np.where(moving, -rb / np.where(moving, ra, 1.0), 0.0)
         c = np.where(moving, -rl / np.where(moving, absa, 1.0), -np.inf)
         d = np.where(moving, rl / np.where(moving, absa, 1.0), np.inf)
-        # Pairs (lower j, upper m): (alpha_j - alpha_m) x <= d_m - c_j.
-        diff = alpha[:, :, None] - alpha[:, None, :]
-        rhs = d[:, None, :] - c[:, :, None]
-        pair_ok = moving[:, :, None] & moving[:, None, :] & (diff > 0)
-        xp = np.where(pair_ok, rhs / np.where(pair_ok, diff, 1.0), np.inf).min(axis=(1, 2))
+        # Pairs (lower j, upper m): (alpha_j - alpha_m) x <= d_m - c_j = d_m + d_j (c = -d); each
+        # unordered pair once, with |alpha_j - alpha_m| (a row that does not move has d = inf).
+        iu, ju = _pairs(ra.shape[1])
+        dT, alT = d.T.copy(), alpha.T.copy()
+        xp = np.minimum.reduce((dT[iu] + dT[ju]) / np.abs(alT[iu] - alT[ju]), axis=0)
         # Lower bound u >= -x / (2 h) (x_{k+1} >= 0) against the upper bounds.
         coef = -1.0 / (2.0 * dl) - alpha
         lo_ok = moving & (coef > 0)
@@ -333,22 +486,9 @@ def _topp(ps: _PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
         B = np.where(dyn_ok, -2.0 * dl * c / np.where(dyn_ok, den, 1.0), np.inf)
     static = np.where(ps.stop[:-1], 0.0, np.maximum(static, 0.0))
     # Backward pass: largest x_k from which the end (and every corner) is reached at rest.
-    # Plain floats: the passes are sequential by nature and short (a few hundred nodes).
-    hi = [0.0] * (n + 1)
-    h = 0.0
-    A_l, B_l, st_l = A.tolist(), B.tolist(), static.tolist()
-    for k in range(n - 1, -1, -1):
-        h = min([st_l[k]] + [ak * h + bk for ak, bk in zip(A_l[k], B_l[k])])
-        hi[k] = h
+    hi = _backward_pass(A, B, static)
     # Forward pass: greedy largest sddot.
-    x = [0.0] * (n + 1)
-    xk = 0.0
-    al_l, d_l, dl_l = alpha.tolist(), d.tolist(), dl[:, 0].tolist()
-    for k in range(n):
-        two_h = 2.0 * dl_l[k]
-        u = min([(hi[k + 1] - xk) / two_h] + [ak * xk + dk for ak, dk in zip(al_l[k], d_l[k])])
-        xk = min(max(xk + two_h * u, 0.0), hi[k + 1])
-        x[k + 1] = xk
+    x = _forward_pass(alpha, d, 2.0 * dl[:, 0], hi)
     out = np.array(x)
     out[n] = 0.0
     stuck = (out[:-1] <= 0.0) & (out[1:] <= 0.0)
