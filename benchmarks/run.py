@@ -177,9 +177,13 @@ def random_dh_arm(n: int, seed: int):
     return chain_from_dh(f'random_{n}r', rows, [REVOLUTE] * n)
 
 
-def row(name, timing, iters, mesh, acc, note=''):
+def row(name, timing, path, acc, note=''):
+    rep = path.solver
+    method = rep.method if hasattr(rep, 'method') else 'piecewise'
+    if method == 'pullback':
+        acc = f'{acc}; est. {rep.path_error:.1e} m'
     return (name, f'{timing.median_ms:8.2f}', f'{timing.p90_ms:8.2f}', f'{timing.cpu_median_ms:8.2f}',
-            str(iters), str(mesh), acc, note)
+            method, str(rep.iterations), str(rep.mesh_size), acc, note)
 
 
 def print_table(title, header, rows, out):
@@ -218,7 +222,7 @@ def main(argv=None) -> int:
     out: list[str] = [f'Machine: {machine()}\n', f'Repeats per timing: {R} (after 3 warm-up runs); times in ms.']
     print(out[0], out[1])
 
-    hdr = ('case', 'median', 'p90', 'cpu med', 'iters', 'mesh', 'accuracy', 'target')
+    hdr = ('case', 'median', 'p90', 'cpu med', 'method', 'Newton it', 'mesh', 'accuracy', 'target')
     rows = []
     ratios = []
 
@@ -228,7 +232,7 @@ def main(argv=None) -> int:
     p3 = pl3.plan(req.start, req.goal)
     e3 = tool_error(p3, req.start, req.goal)
     t3 = measure(lambda: pl3.plan(req.start, req.goal), R)
-    rows.append(row('paper 3R (poses)', t3, p3.solver.iterations, p3.solver.mesh_size,
+    rows.append(row('paper 3R (poses)', t3, p3,
                     f'tool {e3[0]:.1e} m, {e3[1]:.1e} rad', '<= 1.5 ms, <= 1e-8 m'))
 
     # RRPP (Table 5 poses)
@@ -237,7 +241,7 @@ def main(argv=None) -> int:
     pr = reqr.plan(plr)
     tr = measure(lambda: reqr.plan(plr), R)
     sp = pr.metric_speed(np.linspace(0, 1, 201))
-    rows.append(row('RRPP (Table 5 poses)', tr, pr.solver.iterations, pr.solver.mesh_size,
+    rows.append(row('RRPP (Table 5 poses)', tr, pr,
                     f'ODE residual {ode_residual(pr):.1e} (rel), speed var {np.ptp(sp) / sp.mean():.1e}', ''))
 
     # ur5e line + 30° rotation
@@ -246,12 +250,12 @@ def main(argv=None) -> int:
     pu = plu.plan(T_a, T_b, start_joints=q0)
     eu = tool_error(pu, T_a, T_b)
     tu = measure(lambda: plu.plan(T_a, T_b, start_joints=q0), R)
-    rows.append(row('ur5e line + 30° (start joints)', tu, pu.solver.iterations, pu.solver.mesh_size,
+    rows.append(row('ur5e line + 30° (start joints)', tu, pu,
                     f'tool {eu[0]:.1e} m, {eu[1]:.1e} rad', '<= 3 ms, <= 1e-8 m'))
     tu2 = measure(lambda: plu.plan(T_a, T_b), R)
     pu2 = plu.plan(T_a, T_b)
     eu2 = tool_error(pu2, T_a, T_b)
-    rows.append(row('ur5e line + 30° (both poses: 2 IK)', tu2, pu2.solver.iterations, pu2.solver.mesh_size,
+    rows.append(row('ur5e line + 30° (both poses: 2 IK)', tu2, pu2,
                     f'tool {eu2[0]:.1e} m, {eu2[1]:.1e} rad', ''))
 
     # Held-out-style 6-joint URDF arm
@@ -265,7 +269,7 @@ def main(argv=None) -> int:
     pk = plk.plan(Tk_a, Tk_b, start_joints=qk)
     ek = tool_error(pk, Tk_a, Tk_b)
     tk = measure(lambda: plk.plan(Tk_a, Tk_b, start_joints=qk), R)
-    rows.append(row('kr6_like.urdf line + rotation', tk, pk.solver.iterations, pk.solver.mesh_size,
+    rows.append(row('kr6_like.urdf line + rotation', tk, pk,
                     f'tool {ek[0]:.1e} m, {ek[1]:.1e} rad', ''))
 
     # panda (7 joints, epsilon)
@@ -279,8 +283,7 @@ def main(argv=None) -> int:
     pp = plp.plan(Tp_a, Tp_b, start_joints=qp)
     ep = tool_error(pp, Tp_a, Tp_b)
     tp = measure(lambda: plp.plan(Tp_a, Tp_b, start_joints=qp), R)
-    rows.append(row(f'panda 7 joints (epsilon {plp.metric.epsilon:g})', tp, pp.solver.iterations,
-                    pp.solver.mesh_size, f'off line+slerp {ep[0]:.1e} m, {ep[1]:.1e} rad; '
+    rows.append(row(f'panda 7 joints (epsilon {plp.metric.epsilon:g})', tp, pp, f'off line+slerp {ep[0]:.1e} m, {ep[1]:.1e} rad; '
                     f'ODE res {ode_residual(pp):.1e}', '<= 1e-4 m, 1e-3 rad'))
 
     # 5 via points on ur5e (6 poses: start, 4 via, goal ... the path has 5 pieces)
@@ -293,7 +296,7 @@ def main(argv=None) -> int:
     pv = plu.plan_through(poses, start_joints=q0)
     ev = piecewise_tool_error(pv, poses)
     tv = measure(lambda: plu.plan_through(poses, start_joints=q0), R)
-    rows.append(row('ur5e through 5 via points', tv, pv.solver.iterations, pv.solver.mesh_size,
+    rows.append(row('ur5e through 5 via points', tv, pv,
                     f'tool {ev[0]:.1e} m, {ev[1]:.1e} rad', ''))
     print_table('Plan time per case', hdr, rows, out)
 
@@ -312,6 +315,12 @@ def main(argv=None) -> int:
                      f'{tproto.cpu_median_ms / ours_j.cpu_median_ms:.1f}x slower (CPU)',
                      f'status {sol.status}, {sol.niter} it, {sol.x.size} nodes; CPU {tproto.cpu_median_ms:.2f} ms'))
         ratios.append((name, 'prototype', tproto.cpu_median_ms / ours_j.cpu_median_ms))
+        if qs is not None:   # the table above planned from start joints: also both ends as poses
+            ours_p = measure(lambda: planner.plan(T_x, T_y), R)
+            brow.append((f'{name}: geodesic_planner (both ends as poses: 2 IK)', f'{ours_p.median_ms:.2f}',
+                         f'prototype {tproto.cpu_median_ms / ours_p.cpu_median_ms:.1f}x slower (CPU)',
+                         f'CPU {ours_p.cpu_median_ms:.2f} ms'))
+            ratios.append((f'{name} (poses, 2 IK)', 'prototype', tproto.cpu_median_ms / ours_p.cpu_median_ms))
         tcart = measure(lambda: cartesian_ik_path(robot, T_x, T_y, q_start=q_a, samples=100), max(3, R // 5), warmup=1)
         brow.append((f'{name}: Cartesian line + IK, 100 samples', f'{tcart.median_ms:.2f}',
                      f'{tcart.cpu_median_ms / ours.cpu_median_ms:.1f}x slower (CPU) than plan() as in the table above', ''))
@@ -342,9 +351,9 @@ def main(argv=None) -> int:
         try:
             pn = pln.plan(None, None, qa, qb)
             tn_ = measure(lambda: pln.plan(None, None, qa, qb), R)
-            srows.append((f'{n} joints (random DH, joint ends)', f'{tn_.median_ms:.2f}', pn.solver.iterations, pn.solver.mesh_size))
+            srows.append((f'{n} joints (random DH, joint ends)', f'{tn_.median_ms:.2f}', pn.solver.method, pn.solver.iterations, pn.solver.mesh_size))
         except Exception as err:  # noqa: BLE001 - a benchmark row, not library code
-            srows.append((f'{n} joints (random DH)', 'failed', str(err)[:60], ''))
+            srows.append((f'{n} joints (random DH)', 'failed', '', str(err)[:60], ''))
     for k in (1, 2, 5, 10, 20, 50):
         arc = [T_a]
         for i in range(1, k + 1):
@@ -355,14 +364,14 @@ def main(argv=None) -> int:
             arc.append(T)
         pvk = plu.plan_through(arc, start_joints=q0)
         tvk = measure(lambda: plu.plan_through(arc, start_joints=q0), max(3, R // 5), warmup=1)
-        srows.append((f'ur5e arc through {k} via point(s)', f'{tvk.median_ms:.2f}', pvk.solver.iterations, pvk.solver.mesh_size))
+        srows.append((f'ur5e arc through {k} via point(s)', f'{tvk.median_ms:.2f}', pvk.solver.method, pvk.solver.iterations, pvk.solver.mesh_size))
     for L in (0.05, 0.1, 0.2, 0.4):
         T = T_a.copy()
         T[:3, 3] += L * np.array([0.6, -0.48, 0.64])
         pl_ = plu.plan(T_a, T, start_joints=q0)
         tl = measure(lambda: plu.plan(T_a, T, start_joints=q0), R)
-        srows.append((f'ur5e line of {L:.2f} m', f'{tl.median_ms:.2f}', pl_.solver.iterations, pl_.solver.mesh_size))
-    print_table('Scaling', ('case', 'median ms', 'iters', 'mesh'), srows, out)
+        srows.append((f'ur5e line of {L:.2f} m', f'{tl.median_ms:.2f}', pl_.solver.method, pl_.solver.iterations, pl_.solver.mesh_size))
+    print_table('Scaling', ('case', 'median ms', 'method', 'Newton it', 'mesh'), srows, out)
 
     summary = ['\n### Ratios (baseline time / geodesic_planner time; thread CPU time except the one-run naive column)\n']
     summary += [f'- {case}: {what} {r:.1f}x' for case, what, r in ratios]

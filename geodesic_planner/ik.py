@@ -315,9 +315,9 @@ def solve_ik(
             exact = _exact_solution(robot, T_target, closed[0], position_weight, orientation_weight)
             if exact is not None:
                 return exact
-    if seed is not None and len(preferred) == 1:
-        # A seed near the target (the goal seeded with the start): undamped Gauss-Newton with
-        # bounded steps is enough and cheaper than damped least squares.
+    if len(preferred) == 1:
+        # Undamped Gauss-Newton with bounded steps from the seed (or home) first: cheaper than
+        # damped least squares, and enough when the seed leads to an exact solution.
         q_gn, res_gn, _, _ = gauss_newton_batch(robot, T_target[None], q0[None], position_weight=position_weight,
                                                 orientation_weight=orientation_weight, max_iterations=GN_ITERATIONS,
                                                 residual_tol=0.1 * EXACT_RESIDUAL, max_step=GN_MAX_STEP)

@@ -45,7 +45,8 @@ class PiecewiseGeodesicPath(JointPath):
         self.solver = SolverReport(
             max(r.status for r in reps), '; '.join(sorted({r.message for r in reps})),
             sum(r.iterations for r in reps), max(r.max_residual for r in reps),
-            sum(r.mesh_size for r in reps), time_ms, max(r.bc_residual for r in reps))
+            sum(r.mesh_size for r in reps), time_ms, max(r.bc_residual for r in reps),
+            '+'.join(sorted({r.method for r in reps})), max(r.path_error for r in reps))
 
     @property
     def q_start(self) -> np.ndarray:
