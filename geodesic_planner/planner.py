@@ -1,10 +1,16 @@
 """GeodesicPlanner: pose (or joint) boundary conditions -> geodesic joint path (paper Fig. 1).
 
-1. IK only at the two ends (goal seeded with the start solution: one consistent branch).
-2. Initial guess: the task-space geodesic (straight line + slerp) pulled back by batched damped
-   least squares along the mesh; for arms with exactly 6 joints (and the planar 3R) this *is* the
-   exact geodesic, so the collocation converges in one or two Newton steps.
-3. The geodesic BVP of the metric, solved by collocation (geodesic.py).
+1. IK at the two ends (goal seeded with the start solution: one consistent branch).
+2. The task-space geodesic (straight line + slerp) pulled back by batched IK at the mesh nodes
+   (closed form where the robot has one, else Gauss-Newton), with q' from the task velocity.
+3. When that pull-back is exact at every node and ε = 0 (6-joint arms, the planar 3R, any arm
+   whose line + slerp stays reachable), it *is* the geodesic (NOTES.md §4): the geodesic
+   equations give q'' at the nodes, and the mesh is refined until the quintic Hermite path
+   through (q, q', q'') is within ``path_tolerance`` of the geodesic between the nodes
+   (``geodesic.interpolation_error``). No Newton step is needed: method 'pullback'.
+4. Otherwise (redundant arms with ε > 0, arms that cannot follow the line, the 'position'
+   metric): the geodesic BVP of the metric, solved by collocation
+   from that guess (geodesic.solve_geodesic_bvp): method 'collocation'.
 """
 from __future__ import annotations
 
@@ -184,7 +190,7 @@ class GeodesicPlanner:
     # ------------------------------------------------------------------ guess
     def initial_guess(self, q_a: np.ndarray, q_b: np.ndarray, s: np.ndarray,
                       seeds: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
-        """Initial q, q' at the mesh s: task-space line + slerp pulled back by batched DLS.
+        """Initial q, q' at the mesh s: task-space line + slerp pulled back by batched IK.
 
         Returns (q, q', exact): ``exact`` is True when the line + slerp is reachable at every node
         and ε = 0; then the guess is the geodesic itself (an ambient geodesic lying in the reachable
