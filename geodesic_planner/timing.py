@@ -159,13 +159,24 @@ class _PathSamples:
 
         Cubic Hermite interpolation on each step (the exact derivatives at the nodes as slopes).
         """
-        coef = self._coef
         n = self.s.size - 1
+        coef = self._coef.reshape(-1, n)
         k = _clip(np.searchsorted(self.s, s, side='right') - 1, 0, n - 1)
         r = s - self.s[k]
-        c = coef.reshape(-1, n).take(k, axis=1).reshape(8, -1, k.size)
-        a = c[0] + r * (c[1] + r * (c[2] + r * c[3]))
-        b = c[4] + r * (c[5] + r * (c[6] + r * c[7]))
+        if k.size > 1 and bool(np.all(k[1:] >= k[:-1])):  # sorted s: repeating is cheaper
+            c = np.repeat(coef, np.bincount(k, minlength=n), axis=1)
+        else:
+            c = coef.take(k, axis=1)
+        c = c.reshape(8, -1, k.size)
+        a = c[3] * r
+        b = c[7] * r
+        for i in (2, 1):
+            a += c[i]
+            a *= r
+            b += c[4 + i]
+            b *= r
+        a += c[0]
+        b += c[4]
         return a, b
 
     def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -572,8 +583,7 @@ class _PiecewiseLaw:
     t_offsets: np.ndarray  # (len(laws) + 1,) start time of each law; the last is the total duration
     key_step: float = 0.0
     seg_key: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (S,) segment starts (keys)
-    seg: np.ndarray = field(default_factory=lambda: np.zeros((5, 0)))  # (5, S): start, s0, v0, u, S1
-    seg_S2: np.ndarray = field(default_factory=lambda: np.zeros(0))    # (S,)
+    seg: np.ndarray = field(default_factory=lambda: np.zeros((6, 0)))  # (6, S): start, s0, v0, u, S1, S2
     law_data: np.ndarray = field(default_factory=lambda: np.zeros((5, 0)))  # (5, L): tau, dur, s_start, span, s_end
 
     @property
@@ -583,6 +593,16 @@ class _PiecewiseLaw:
     @property
     def t_star(self) -> float:
         return float(sum(law.t_star for law in self.laws))
+
+    def times_at(self, s: np.ndarray) -> np.ndarray:
+        """Approximate times (M,) at which the smoothed law passes the path parameters ``s`` (M,).
+
+        The time-optimal law's nodes delayed by tau (the smoothed law averages s* over
+        [t - 2 tau, t]), linearly interpolated: cheap, and close enough to place check samples.
+        """
+        s_nodes = np.concatenate([law.s_start + law.s_k for law in self.laws])
+        t_nodes = np.concatenate([off + law.tau + law.t_k for off, law in zip(self.t_offsets.tolist(), self.laws)])
+        return np.interp(s, s_nodes, t_nodes)
 
     def evaluate(self, t: np.ndarray, jerk: bool = True
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
@@ -608,24 +628,54 @@ class _PiecewiseLaw:
         c = local - tau
         q = np.concatenate([local, c, c - tau])
         m = local.size
-        key = q + (np.concatenate([key_off] * 3) if nl > 1 else key_off)
-        k = np.searchsorted(self.seg_key, key, side='right') - 1
-        start, s0, v0, u, S1 = self.seg.take(k, axis=1)
-        S2 = self.seg_S2.take(k)
+        key = q + np.concatenate([key_off] * 3) if nl > 1 else q
+        runs = key.reshape(3, m)
+        if m > 1 and bool(np.all(runs[:, 1:] >= runs[:, :-1])):
+            # Sorted times (the usual case): each run's samples per segment, by searching the
+            # segment starts in the run, then one repeat of the table.
+            counts = [np.diff(np.searchsorted(run, self.seg_key, side='left'), append=m) for run in runs]
+            cols = np.repeat(np.tile(self.seg, 3), np.concatenate(counts), axis=1)
+        else:
+            cols = self.seg.take(np.searchsorted(self.seg_key, key, side='right') - 1, axis=1)
+        start, s0, v0, u, S1, S2 = cols
+        # Horner, in place: S2 + r (S1 + r (s0 / 2 + r (v0 / 6 + r u / 24))), and likewise.
         r = q - start
         ru = r * u
-        S2 = S2 + r * (S1 + r * (0.5 * s0 + r * (v0 / 6.0 + ru / 24.0)))
-        S1 = S1 + r * (s0 + r * (0.5 * v0 + ru / 6.0))
-        s0 = s0 + r * (v0 + 0.5 * ru)
+        w2 = ru / 24.0
+        w2 += v0 / 6.0
+        w2 *= r
+        w2 += 0.5 * s0
+        w2 *= r
+        w2 += S1
+        w2 *= r
+        w2 += S2
+        w1 = ru / 6.0
+        w1 += 0.5 * v0
+        w1 *= r
+        w1 += s0
+        w1 *= r
+        w1 += S1
+        w0 = 0.5 * ru
+        w0 += v0
+        w0 *= r
+        w0 += s0
         inv = 1.0 / (tau * tau)
 
         def second_difference(y: np.ndarray) -> np.ndarray:
-            return (y[:m] - 2.0 * y[m:2 * m] + y[2 * m:]) * inv
+            y = y.reshape(3, m)
+            out = y[0] - 2.0 * y[1]
+            out += y[2]
+            out *= inv
+            return out
 
-        s = s_start + _clip(second_difference(S2), 0.0, span)
-        sd = np.maximum(second_difference(S1), 0.0)
-        sdd = second_difference(s0)
-        sddd = second_difference(v0 + ru) if jerk else None
+        s = s_start + _clip(second_difference(w2), 0.0, span)
+        sd = np.maximum(second_difference(w1), 0.0)
+        sdd = second_difference(w0)
+        if jerk:
+            ru += v0
+            sddd = second_difference(ru)
+        else:
+            sddd = None
         # Exact ends: at rest, at s_start and s_end.
         end = local >= dur
         start_ = local <= 0.0
@@ -651,10 +701,9 @@ def _build_piecewise_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -
     # trailing rest from i key_step + their local start times.
     seg_key = np.concatenate([np.concatenate([[-np.inf if i == 0 else (i - 0.5) * key_step],
                                               p[0][1:] + i * key_step]) for i, p in enumerate(parts)])
-    seg = np.stack([np.concatenate([p[c] for p in parts]) for c in range(5)])
-    seg_S2 = np.concatenate([p[5] for p in parts])
+    seg = np.stack([np.concatenate([p[c] for p in parts]) for c in range(6)])
     law_data = np.array([[law.tau, law.duration, law.s_start, float(law.s_k[-1]), law.s_end] for law in laws]).T
-    return _PiecewiseLaw(tuple(laws), offsets, key_step, seg_key, seg, seg_S2, np.ascontiguousarray(law_data))
+    return _PiecewiseLaw(tuple(laws), offsets, key_step, seg_key, seg, np.ascontiguousarray(law_data))
 
 
 @dataclass(frozen=True, eq=False)
@@ -864,22 +913,26 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
 
     # Dense check of the smoothed law against the full limits; stretch time if needed.
     m = int(check_samples) if check_samples is not None else max(4000, 20 * ps.s.size)
-    t_grid = np.linspace(0.0, law.duration, max(m, 10))
+    t_chk = np.linspace(0.0, law.duration, max(m, 10))
     if len(law.laws) > 1:
-        t_grid = np.union1d(t_grid, law.t_offsets)
-    s_grid, sd, sdd, _ = law.evaluate(t_grid, jerk=False)
-    # Also samples uniform in s (mapped back to t): a long law can cross a stretch of the path
-    # in a fraction of its duration, where samples uniform in t are sparse. (Those falling on
-    # a grid time are already there.)
-    t_x = np.unique(np.interp(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS), s_grid, t_grid))
-    t_x = t_x[t_grid.take(_clip(np.searchsorted(t_grid, t_x), 0, t_grid.size - 1)) != t_x]
-    s_x, sd_x, sdd_x, _ = law.evaluate(t_x, jerk=False)
-    s = np.concatenate([s_grid, s_x])
-    sd = np.concatenate([sd, sd_x])
-    sdd = np.concatenate([sdd, sdd_x])
+        t_chk = np.union1d(t_chk, law.t_offsets)
+    # Also samples about uniform in s: a long law can cross a stretch of the path in a fraction
+    # of its duration, where samples uniform in t are sparse. All in order of time (two sorted
+    # runs: a cheap stable sort), hence of s, for the interpolation.
+    t_chk = np.concatenate([t_chk, law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS))])
+    t_chk = t_chk[np.argsort(t_chk, kind='stable')]
+    s, sd, sdd, _ = law.evaluate(t_chk, jerk=False)
     a, b = ps.interpolate_t(s)
-    rv_t = np.max(np.abs(a * sd) / vmax[:, None], axis=0)
-    ra_t = np.max(np.abs(a * sdd + b * (sd * sd)) / amax[:, None], axis=0)
+    vel = a * sd
+    np.abs(vel, out=vel)
+    vel /= vmax[:, None]
+    rv_t = vel.max(axis=0)
+    a *= sdd
+    b *= sd * sd
+    a += b
+    np.abs(a, out=a)
+    a /= amax[:, None]
+    ra_t = a.max(axis=0)
     rv, ra = float(rv_t.max()), float(ra_t.max())
     # The samples closest to a limit are verified with the exact path derivatives.
     need = np.maximum(rv_t, np.sqrt(ra_t))
@@ -892,7 +945,7 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
     # (Rests at corners need no check: sdot = sddot = 0 there.)
     inner = np.flatnonzero(((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1)) & ~ps.stop)
     if inner.size:
-        sd_b, sdd_b = _at_path_parameter(law, t_grid, s_grid, ps.s[inner])
+        sd_b, sdd_b = _at_path_parameter(law, t_chk, s, ps.s[inner])
         for aa, bb in ((ps.aL[inner], ps.bL[inner]), (ps.aR[inner], ps.bR[inner])):
             rv = max(rv, float(np.max(np.abs(aa * sd_b[:, None]) / vmax)))
             ra = max(ra, float(np.max(np.abs(aa * sdd_b[:, None] + bb * (sd_b**2)[:, None]) / amax)))
