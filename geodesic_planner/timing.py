@@ -119,19 +119,24 @@ class _PathSamples:
         if factor <= 1:
             return self
         n = self.s.size - 1
-        frac = np.arange(1, factor) / factor
-        extra = (self.s[:-1, None] + np.diff(self.s)[:, None] * frac[None, :]).reshape(-1)
-        a, b = self.interpolate(extra)
         dof = self.aR.shape[1]
+        f = factor - 1
+        extra = self.s[:-1, None] + np.diff(self.s)[:, None] * (np.arange(1, factor) / factor)
+        k = np.repeat(np.arange(n), f)
+        a, b = self._interpolate_steps(k, extra.reshape(-1) - self.s[k])
         m = n * factor + 1
-        inserted = (np.arange(n)[:, None] * factor + np.arange(1, factor)[None, :]).reshape(-1)
 
         def merge(node_vals: np.ndarray, extra_vals: np.ndarray) -> np.ndarray:
+            """Node values (n+1, ...) and each step's extra values (n, factor - 1, ...) interleaved."""
             out = np.empty((m,) + node_vals.shape[1:])
-            out[::factor] = node_vals
-            out[inserted] = extra_vals
+            body = out[:-1].reshape((n, factor) + node_vals.shape[1:])
+            body[:, 0] = node_vals[:-1]
+            body[:, 1:] = extra_vals
+            out[-1] = node_vals[-1]
             return out
 
+        a = a.T.reshape(n, f, dof)
+        b = b.T.reshape(n, f, dof)
         zeros = np.zeros((m, dof))
         stop = np.zeros(m, dtype=bool)
         stop[::factor] = self.stop
@@ -160,10 +165,14 @@ class _PathSamples:
         Cubic Hermite interpolation on each step (the exact derivatives at the nodes as slopes).
         """
         n = self.s.size - 1
-        coef = self._coef.reshape(-1, n)
         k = _clip(np.searchsorted(self.s, s, side='right') - 1, 0, n - 1)
-        r = s - self.s[k]
-        if k.size > 1 and bool(np.all(k[1:] >= k[:-1])):  # sorted s: repeating is cheaper
+        return self._interpolate_steps(k, s - self.s[k])
+
+    def _interpolate_steps(self, k: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """q' and q'' at ``s_k + r`` on steps ``k`` (M,); each (dof, M)."""
+        n = self.s.size - 1
+        coef = self._coef.reshape(-1, n)
+        if k.size > 1 and bool(np.all(k[1:] >= k[:-1])):  # sorted: repeating is cheaper
             c = np.repeat(coef, np.bincount(k, minlength=n), axis=1)
         else:
             c = coef.take(k, axis=1)
@@ -535,22 +544,22 @@ class _TimeLaw:
     def duration(self) -> float:
         return self.t_star + 2.0 * self.tau
 
-    def segments(self) -> tuple[np.ndarray, ...]:
-        """s* as polynomial segments over all local times: (start, s0, v0, u, S1, S2), each (N+2,).
+    def segments(self) -> np.ndarray:
+        """s* as polynomial segments over all local times: rows (start, s0, v0, u, S1, S2), (6, N+2).
 
         Segment 0 (before time 0; all zero) is the rest before the start, segments 1..N the steps
         of s*, segment N+1 (from T*) the rest at ``span`` after the end; on a segment starting at
         ``start``, with ``r = t - start``: ``s* = s0 + v0 r + u r^2 / 2`` and its integrals
         ``S1 + s0 r + ...``, ``S2 + S1 r + ...``.
         """
-        z = np.zeros(1)
-        span = self.s_k[-1:]
-        return (np.concatenate([z, self.t_k]),
-                np.concatenate([z, self.s_k[:-1], span]),
-                np.concatenate([z, self.v_k[:-1], z]),
-                np.concatenate([z, self.u_k, z]),
-                np.concatenate([z, self.S1_k]),
-                np.concatenate([z, self.S2_k]))
+        out = np.zeros((6, self.u_k.size + 2))
+        out[0, 1:] = self.t_k
+        out[1, 1:] = self.s_k
+        out[2, 1:-1] = self.v_k[:-1]
+        out[3, 1:-1] = self.u_k
+        out[4, 1:] = self.S1_k
+        out[5, 1:] = self.S2_k
+        return out
 
 
 def _build_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -> _TimeLaw:
@@ -690,18 +699,23 @@ class _PiecewiseLaw:
 
 def _build_piecewise_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -> _PiecewiseLaw:
     """Split the optimal profile at its rests (x = 0) and smooth each rest-to-rest piece."""
-    rests = np.flatnonzero(x <= 0.0)
+    rests = np.flatnonzero(x <= 0.0).tolist()
     laws = [_build_law(s_nodes[i:j + 1], x[i:j + 1], smoothing) for i, j in zip(rests[:-1], rests[1:])]
-    offsets = np.concatenate([[0.0], np.cumsum([law.duration for law in laws])])
-    durations = np.array([law.duration for law in laws])
+    durations = [law.duration for law in laws]
+    offsets = np.concatenate([[0.0], np.cumsum(durations)])
     # A power of two: i * key_step is exact; local times lie in [-2 tau, duration] within +-key_step / 4.
-    key_step = float(2.0 ** math.ceil(math.log2(4.0 * max(float(durations.max()), 1e-300))))
+    key_step = float(2.0 ** math.ceil(math.log2(4.0 * max(max(durations), 1e-300))))
     parts = [law.segments() for law in laws]
+    seg = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
     # Keys: piece i's leading rest from (i - 1/2) key_step (the first from -inf), its steps and
     # trailing rest from i key_step + their local start times.
-    seg_key = np.concatenate([np.concatenate([[-np.inf if i == 0 else (i - 0.5) * key_step],
-                                              p[0][1:] + i * key_step]) for i, p in enumerate(parts)])
-    seg = np.stack([np.concatenate([p[c] for p in parts]) for c in range(6)])
+    seg_key = seg[0].copy()
+    first = 0
+    for i, part in enumerate(parts):
+        if i:
+            seg_key[first:first + part.shape[1]] += i * key_step
+        seg_key[first] = (i - 0.5) * key_step if i else -np.inf
+        first += part.shape[1]
     law_data = np.array([[law.tau, law.duration, law.s_start, float(law.s_k[-1]), law.s_end] for law in laws]).T
     return _PiecewiseLaw(tuple(laws), offsets, key_step, seg_key, seg, np.ascontiguousarray(law_data))
 
