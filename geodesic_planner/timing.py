@@ -309,67 +309,102 @@ def _pick(values: np.ndarray, cols: np.ndarray) -> list[float]:
     return values[np.arange(cols.size), cols].tolist()
 
 
-#: Iterations of the vectorised active-row guess of the TOPP passes.
-_GUESS_ITERATIONS = 3
+#: Iterations of the vectorised (closed-form) TOPP passes.
+_GUESS_ITERATIONS = 4
+#: Relative per-step residual below which a closed-form TOPP pass is accepted.
+_CLOSED_FORM_RTOL = 1e-12
 
 
-def _backward_guess(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rows likely to attain the minimum in each step of the backward pass, two per step, (n,) each.
+def _sums(terms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Prefix and suffix sums of ``terms`` (n,): ``P_k = sum_{i<k}``, ``S_k = sum_{i>=k}``, each (n+1,)."""
+    prefix = np.concatenate([[0.0], np.cumsum(terms)])
+    suffix = np.concatenate([np.cumsum(terms[::-1])[::-1], [0.0]])
+    return prefix, suffix
 
-    With one row per step, ``h_k = min(static_k, a_k h_{k+1} + b_k)`` has a closed form (a_k > 0):
-    ``h_k = e^{-L_k} (min_{m >= k} (e^{L_m} static_m + C_m) - C_k)``, ``L_k = sum_{i<k} log a_i``,
-    ``C_k = sum_{i<k} e^{L_i} b_i`` (static_n = 0). Starting from the rows lowest at h = 0, the
-    rows lowest at that h are taken, a couple of times. Only a guess: it is verified after the pass.
+
+def _less_cancelled(v1: np.ndarray, big1: np.ndarray, v2: np.ndarray, big2: np.ndarray) -> np.ndarray:
+    """Per element, v1 or v2: the one computed from the smaller operands ``big`` (less cancellation)."""
+    return np.where(big1 * np.abs(v2) <= big2 * np.abs(v1), v1, v2)
+
+
+def _backward_closed(A: np.ndarray, B: np.ndarray, static: np.ndarray
+                     ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+    """The backward pass, vectorised: (hi or None, guessed rows, first guess), rows (n,) ints.
+
+    With one row per step, ``h_k = min(static_k, a_k h_{k+1} + b_k)`` (a_k > 0, h_n = 0) has a
+    closed form: with ``L_k = sum_{i<k} log a_i`` and ``E_i = e^{L_i} b_i``,
+    ``h_k = e^{-L_k} min_{m >= k} (e^{L_m} static_m + sum_{i=k}^{m-1} E_i)`` (static_n = 0); the
+    partial sums are differences of prefix sums, or of suffix sums, whichever cancels less. Starting
+    from the rows lowest at h = 0, it is solved again with the rows lowest at the previous
+    solution. It is accepted when every step satisfies the recursion over all rows to
+    ``_CLOSED_FORM_RTOL`` (exactly where it is zero: the rests); otherwise None, and the rows serve
+    as guesses for the loop.
     """
     n = static.size
     steps = np.arange(n)
-    g = np.argmin(B, axis=1)
-    first = g
+    g = first = np.argmin(B, axis=1)
     st = np.append(static, 0.0)
     with np.errstate(all='ignore'):
         for _ in range(_GUESS_ITERATIONS):
-            a, b = A[steps, g], B[steps, g]
-            L = np.concatenate([[0.0], np.cumsum(np.log(a))])
+            L = np.concatenate([[0.0], np.cumsum(np.log(A[steps, g]))])
             eL = np.exp(L)
-            C = np.concatenate([[0.0], np.cumsum(eL[:-1] * b)])
-            M = np.minimum.accumulate((eL * st + C)[::-1])[::-1]
-            h = (M - C) / eL
+            P, S = _sums(eL[:-1] * B[steps, g])
+            m1 = np.minimum.accumulate((eL * st + P)[::-1])[::-1]
+            m2 = np.minimum.accumulate((eL * st - S)[::-1])[::-1]
+            h = _less_cancelled((m1 - P) / eL, P, (S + m2) / eL, S)
             if not np.all(np.isfinite(h)):
                 break
-            g = np.argmin(A * h[1:, None] + B, axis=1)
-    return g, first
+            vals = A * h[1:, None] + B
+            act = np.argmin(vals, axis=1)
+            exact = np.minimum(static, vals[steps, act])
+            if bool(np.all(np.abs(exact - h[:-1]) <= _CLOSED_FORM_RTOL * exact)):
+                return h, act, first
+            if np.array_equal(act, g):
+                break
+            g = act
+    return None, g, first
 
 
-def _forward_guess(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Rows likely to attain the minimum in each step of the forward pass, two per step, (n,) each.
+def _forward_closed(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.ndarray
+                    ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+    """The forward pass, vectorised: (x or None, guessed rows, first guess), as :func:`_backward_closed`.
 
     With one row per step, ``x_{k+1} = min(hi_{k+1}, p_k x_k + q_k)`` (p = 1 + 2 h alpha,
-    q = 2 h d) has a closed form for p > 0: ``x_j = e^{L_j} (C_j + min_{m <= j} (e^{-L_m} hi_m -
-    C_m))``, ``L_j = sum_{i<j} log p_i``, ``C_j = sum_{i<j} e^{-L_{i+1}} q_i`` (hi_0 = 0).
-    Starting from the rows lowest at x = hi, the rows lowest at that x are taken, a couple of times.
+    q = 2 h d) has a closed form for p > 0: with ``L_j = sum_{i<j} log p_i`` and
+    ``E_i = e^{-L_{i+1}} q_i``, ``x_j = e^{L_j} min_{m <= j} (e^{-L_m} hi_m + sum_{i=m}^{j-1} E_i)``
+    (hi_0 = 0). Starting from the rows lowest at x = hi; accepted when every step matches the
+    exact update over all rows to ``_CLOSED_FORM_RTOL``.
     """
     n = two_h.size
     steps = np.arange(n)
-    g = np.argmin(alpha * hi[:-1, None] + d, axis=1)
-    first = g
+    hi1 = hi[1:]
+    g = first = np.argmin(alpha * hi[:-1, None] + d, axis=1)
     top = hi.copy()
     top[0] = 0.0
     with np.errstate(all='ignore'):
         for _ in range(_GUESS_ITERATIONS):
-            p = np.maximum(1.0 + two_h * alpha[steps, g], 1e-6)
-            q = two_h * d[steps, g]
-            L = np.concatenate([[0.0], np.cumsum(np.log(p))])
+            L = np.concatenate([[0.0], np.cumsum(np.log(np.maximum(1.0 + two_h * alpha[steps, g], 1e-6)))])
             eL = np.exp(L)
-            C = np.concatenate([[0.0], np.cumsum(q / eL[1:])])
-            x = eL * (C + np.minimum.accumulate(top / eL - C))
+            P, S = _sums(two_h * d[steps, g] / eL[1:])
+            m1 = np.minimum.accumulate(top / eL - P)
+            m2 = np.minimum.accumulate(top / eL + S)
+            x = _less_cancelled(eL * (P + m1), P, eL * (m2 - S), S)
             if not np.all(np.isfinite(x)):
                 break
-            g = np.argmin(alpha * x[:-1, None] + d, axis=1)
-    return g, first
+            x0 = x[:-1]
+            vals = alpha * x0[:, None] + d
+            act = np.argmin(vals, axis=1)
+            u = np.minimum((hi1 - x0) / two_h, vals[steps, act])
+            exact = np.minimum(np.maximum(x0 + two_h * u, 0.0), hi1)
+            if bool(np.all(np.abs(exact - x[1:]) <= _CLOSED_FORM_RTOL * exact)):
+                return x, act, first
+            if np.array_equal(act, g):
+                break
+            g = act
+    return None, g, first
 
 
-def _backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> list[float]:
+def _backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> np.ndarray:
     """hi_k = min(static_k, min_j A_kj hi_{k+1} + B_kj) for k = n-1 .. 0, hi_n = 0; (n + 1) floats.
 
     The recursion is sequential, so it runs on plain floats, over two guessed rows per step; the
@@ -382,7 +417,9 @@ def _backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> list[flo
     n = static.size
     st = static.tolist()
     hi = [0.0] * (n + 1)
-    g0, g1 = _backward_guess(A, B, static)
+    closed, g0, g1 = _backward_closed(A, B, static)
+    if closed is not None:
+        return closed
     start = n - 1
     for _ in range(_PASS_ROUNDS):
         a0, b0, a1, b1 = _pick(A, g0), _pick(B, g0), _pick(A, g1), _pick(B, g1)
@@ -396,7 +433,7 @@ def _backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> list[flo
         act = np.argmin(vals, axis=1)
         bad = np.flatnonzero(np.minimum(static, vals[np.arange(n), act]) != hv[:-1])
         if bad.size == 0:
-            return hi
+            return hv
         start = int(bad[-1])
         g0, g1 = act, g0
     A_l, B_l = A[:start + 1].tolist(), B[:start + 1].tolist()
@@ -404,21 +441,22 @@ def _backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> list[flo
     for k in range(start, -1, -1):
         h = min([st[k]] + [ak * h + bk for ak, bk in zip(A_l[k], B_l[k])])
         hi[k] = h
-    return hi
+    return np.array(hi)
 
 
-def _forward_pass(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: list[float]) -> list[float]:
+def _forward_pass(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi_np: np.ndarray) -> np.ndarray:
     """Greedy forward pass x_{k+1} = clip(x_k + 2 h_k u_k, 0, hi_{k+1}), x_0 = 0; (n + 1) floats.
 
     ``u_k = min((hi_{k+1} - x_k) / (2 h_k), min_j alpha_kj x_k + d_kj)``; guessed rows checked
     against all rows, as in :func:`_backward_pass`.
     """
     n = two_h.size
-    hi_np = np.array(hi)
     hi1 = hi_np[1:]
-    th, hi1_l = two_h.tolist(), hi[1:]
+    th, hi1_l = two_h.tolist(), hi1.tolist()
     x = [0.0] * (n + 1)
-    g0, g1 = _forward_guess(alpha, d, two_h, hi_np)
+    closed, g0, g1 = _forward_closed(alpha, d, two_h, hi_np)
+    if closed is not None:
+        return closed
     start = 0
     for _ in range(_PASS_ROUNDS):
         a0, d0, a1, d1 = _pick(alpha, g0), _pick(d, g0), _pick(alpha, g1), _pick(d, g1)
@@ -435,7 +473,7 @@ def _forward_pass(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: list[
         u = np.minimum((hi1 - x0) / two_h, vals[np.arange(n), act])
         bad = np.flatnonzero(np.minimum(np.maximum(x0 + two_h * u, 0.0), hi1) != xv[1:])
         if bad.size == 0:
-            return x
+            return xv
         start = int(bad[0])
         g0, g1 = act, g0
     al_l, d_l = alpha.tolist(), d.tolist()
@@ -444,7 +482,7 @@ def _forward_pass(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: list[
         u = min([(hi1_l[k] - xk) / th[k]] + [ak * xk + dk for ak, dk in zip(al_l[k], d_l[k])])
         xk = min(max(xk + th[k] * u, 0.0), hi1_l[k])
         x[k + 1] = xk
-    return x
+    return np.array(x)
 
 
 @functools.lru_cache(maxsize=16)
@@ -474,20 +512,27 @@ def _topp(ps: _PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
     with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
         absa_n = np.maximum(np.abs(ps.aL), np.abs(ps.aR))
         mov_v = absa_n > 1e-12 * max(float(absa_n.max()), 1e-300)
-        xv = np.where(mov_v, (vmax / np.where(mov_v, absa_n, 1.0)) ** 2, np.inf).min(axis=1)
         # Rows of step k: |ra u + rb x_k| <= rl.
         ra = np.concatenate([ps.aR[:-1], ps.aL[1:] + 2.0 * dl * ps.bL[1:]], axis=1)   # (n, 2 dof)
         rb = np.concatenate([ps.bR[:-1], ps.bL[1:]], axis=1)
         rl = np.concatenate([amax, amax])
         absa = np.abs(ra)
         moving = absa > 1e-12 * max(float(absa.max()), 1e-300)
-        absb = np.abs(rb)
-        # Rows with ra = 0: |rb| x <= rl.
-        xz = np.where(~moving & (absb > 0), rl / np.where(absb > 0, absb, 1.0), np.inf).min(axis=1)
-        # Bounds on u: alpha x + c <= u <= alpha x + d.
-        alpha = np.where(moving, -rb / np.where(moving, ra, 1.0), 0.0)
-        c = np.where(moving, -rl / np.where(moving, absa, 1.0), -np.inf)
-        d = np.where(moving, rl / np.where(moving, absa, 1.0), np.inf)
+        if mov_v.all() and moving.all():  # the usual case: no masking needed (same values)
+            xv = ((vmax / absa_n) ** 2).min(axis=1)
+            alpha = -rb / ra
+            d = rl / absa
+            c = -d
+            xz = xv[:-1]  # no row with ra = 0: a neutral bound
+        else:
+            xv = np.where(mov_v, (vmax / np.where(mov_v, absa_n, 1.0)) ** 2, np.inf).min(axis=1)
+            absb = np.abs(rb)
+            # Rows with ra = 0: |rb| x <= rl.
+            xz = np.where(~moving & (absb > 0), rl / np.where(absb > 0, absb, 1.0), np.inf).min(axis=1)
+            # Bounds on u: alpha x + c <= u <= alpha x + d.
+            alpha = np.where(moving, -rb / np.where(moving, ra, 1.0), 0.0)
+            c = np.where(moving, -rl / np.where(moving, absa, 1.0), -np.inf)
+            d = np.where(moving, rl / np.where(moving, absa, 1.0), np.inf)
         # Pairs (lower j, upper m): (alpha_j - alpha_m) x <= d_m - c_j = d_m + d_j (c = -d); each
         # unordered pair once, with |alpha_j - alpha_m| (a row that does not move has d = inf).
         iu, ju = _pairs(ra.shape[1])
@@ -497,19 +542,23 @@ def _topp(ps: _PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
         coef = -1.0 / (2.0 * dl) - alpha
         lo_ok = moving & (coef > 0)
         xl = np.where(lo_ok, d / np.where(lo_ok, coef, 1.0), np.inf).min(axis=1)
-        static = np.minimum.reduce([xv[:-1], xz, xp, xl, np.full(n, _X_CAP)])
+        static = np.minimum(np.minimum(np.minimum(xv[:-1], xz), np.minimum(xp, xl)), _X_CAP)
         # Dynamic bound: alpha_j x + c_j <= (hi_{k+1} - x) / (2 h)
         #   <=> x (1 + 2 h alpha_j) <= hi_{k+1} - 2 h c_j.
         den = 1.0 + 2.0 * dl * alpha
         dyn_ok = moving & (den > 0)
-        A = np.where(dyn_ok, 1.0 / np.where(dyn_ok, den, 1.0), 0.0)
-        B = np.where(dyn_ok, -2.0 * dl * c / np.where(dyn_ok, den, 1.0), np.inf)
+        if dyn_ok.all():
+            A = 1.0 / den
+            B = -2.0 * dl * c / den
+        else:
+            A = np.where(dyn_ok, 1.0 / np.where(dyn_ok, den, 1.0), 0.0)
+            B = np.where(dyn_ok, -2.0 * dl * c / np.where(dyn_ok, den, 1.0), np.inf)
     static = np.where(ps.stop[:-1], 0.0, np.maximum(static, 0.0))
     # Backward pass: largest x_k from which the end (and every corner) is reached at rest.
     hi = _backward_pass(A, B, static)
     # Forward pass: greedy largest sddot.
     x = _forward_pass(alpha, d, 2.0 * dl[:, 0], hi)
-    out = np.array(x)
+    out = x
     out[n] = 0.0
     stuck = (out[:-1] <= 0.0) & (out[1:] <= 0.0)
     if np.any(stuck):
