@@ -322,11 +322,6 @@ def _sums(terms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return prefix, suffix
 
 
-def _less_cancelled(v1: np.ndarray, big1: np.ndarray, v2: np.ndarray, big2: np.ndarray) -> np.ndarray:
-    """Per element, v1 or v2: the one computed from the smaller operands ``big`` (less cancellation)."""
-    return np.where(big1 * np.abs(v2) <= big2 * np.abs(v1), v1, v2)
-
-
 def _backward_closed(A: np.ndarray, B: np.ndarray, static: np.ndarray
                      ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
     """The backward pass, vectorised: (hi or None, guessed rows, first guess), rows (n,) ints.
@@ -351,9 +346,8 @@ def _backward_closed(A: np.ndarray, B: np.ndarray, static: np.ndarray
             P, S = _sums(eL[:-1] * B[steps, g])
             m1 = np.minimum.accumulate((eL * st + P)[::-1])[::-1]
             m2 = np.minimum.accumulate((eL * st - S)[::-1])[::-1]
-            h = _less_cancelled((m1 - P) / eL, P, (S + m2) / eL, S)
-            if not np.all(np.isfinite(h)):
-                break
+            # e^{L_k} h_k from the smaller of the prefix and suffix sums (less cancellation).
+            h = np.where(P <= S, m1 - P, S + m2) / eL
             vals = A * h[1:, None] + B
             act = np.argmin(vals, axis=1)
             exact = np.minimum(static, vals[steps, act])
@@ -388,9 +382,7 @@ def _forward_closed(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.
             P, S = _sums(two_h * d[steps, g] / eL[1:])
             m1 = np.minimum.accumulate(top / eL - P)
             m2 = np.minimum.accumulate(top / eL + S)
-            x = _less_cancelled(eL * (P + m1), P, eL * (m2 - S), S)
-            if not np.all(np.isfinite(x)):
-                break
+            x = np.where(P <= S, P + m1, m2 - S) * eL
             x0 = x[:-1]
             vals = alpha * x0[:, None] + d
             act = np.argmin(vals, axis=1)
