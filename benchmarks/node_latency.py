@@ -3,8 +3,18 @@
 Starts the real node (console script ``geodesic_planner_node``) per robot, then from this process:
 
 1. sequential requests (after warm-up): latency from ``call_async`` to the trajectory arriving in
-   a subscription callback, and to the service response; p50/p90/max in ms;
-2. sustained load: 4 concurrent clients sending back-to-back requests; plans per second.
+   a subscription callback (a typed Python subscriber: the time includes deserialising the
+   message), and to the service response; p50/p90/max in ms. The node logs its computation per
+   request (plan, timing, trajectory message); "ROS overhead" is the latency minus that, so it
+   can be compared across library versions and machine load;
+2. sustained load: 4 concurrent clients sending back-to-back requests (each blocks on an event
+   until its response: no polling); plans per second, and CPU time per plan of the node process
+   (all threads, from /proc) and of this process.
+
+Fair measurement: this process runs the subscriber and the 4 clients on a helper node without
+parameter services or rosout, spun by a SingleThreadedExecutor. With rclpy's
+MultiThreadedExecutor (as before issue 6 was worked on) the benchmark itself used 8-9 ms CPU per
+plan on the 2 cores it shares with the node and added 5-7 ms to the measured latency.
 
 Run inside the loopback-only network namespace (ROS must not leave the machine)::
 
@@ -49,6 +59,24 @@ class Result:
     rate: float                # sustained plans/s, 4 clients
     rate_requests: int
     rate_failures: int
+    compute_ms: np.ndarray     # node-side plan + timing + trajectory message, per sequential request
+    node_cpu_ms: float         # node process CPU time per plan under load (all its threads)
+    bench_cpu_ms: float        # this process's CPU time per plan under load (4 clients + subscriber)
+
+    @property
+    def overhead_ms(self) -> np.ndarray:
+        """Request -> trajectory minus the node's computation: the ROS/threading overhead."""
+        return self.traj_ms - self.compute_ms
+
+
+_PLAN_LINE = re.compile(r'\]: plan: \d+ points.*?\(request [0-9.]+ ms: plan ([0-9.]+), '
+                        r'timing ([0-9.]+), trajectory ([0-9.]+)')
+
+
+def _process_cpu_s(pid: int) -> float:
+    """User + system CPU time of a process (all threads), s."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def requests_for(robot_name: str, n: int, seed: int = 0) -> list[Any]:
@@ -77,15 +105,20 @@ def requests_for(robot_name: str, n: int, seed: int = 0) -> list[Any]:
 
 
 class Bench:
-    """Helper node in this process, spun by a MultiThreadedExecutor in a thread."""
+    """Helper node in this process, spun by a SingleThreadedExecutor in a thread."""
 
     def __init__(self) -> None:
         import rclpy
-        from rclpy.executors import MultiThreadedExecutor
+        from rclpy.executors import SingleThreadedExecutor
 
         rclpy.init()
-        self.node = rclpy.create_node('node_latency_bench')
-        self.executor = MultiThreadedExecutor(num_threads=4)
+        # Only what is measured is in the wait set (no parameter services, no rosout), and a
+        # single-threaded executor: its callbacks only stamp times and set futures, and
+        # rclpy's MultiThreadedExecutor cost this process about twice the CPU per plan
+        # (8-9 ms vs 4 ms) and added 5-7 ms to the measured latency.
+        self.node = rclpy.create_node('node_latency_bench', start_parameter_services=False,
+                                      enable_rosout=False)
+        self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
         self.thread = threading.Thread(target=self.executor.spin, daemon=True)
         self.thread.start()
@@ -209,6 +242,7 @@ def measure(bench: Bench, robot: str, n_requests: int, warmup: int, per_client: 
         with cond:
             k0 = len(arrivals)
         t0 = time.perf_counter()
+        cpu0 = _process_cpu_s(proc.pid), time.process_time()
         threads = [threading.Thread(target=worker, args=(c,)) for c in range(4)]
         for t in threads:
             t.start()
@@ -218,14 +252,9 @@ def measure(bench: Bench, robot: str, n_requests: int, warmup: int, per_client: 
         with cond:
             cond.wait_for(lambda: len(arrivals) >= k0 + expected, DEADLINE)
             t_end = arrivals[-1] if len(arrivals) > k0 else time.perf_counter()
+        node_cpu = (_process_cpu_s(proc.pid) - cpu0[0]) * 1e3 / len(load)
+        bench_cpu = (time.process_time() - cpu0[1]) * 1e3 / len(load)
         rate = expected / (t_end - t0)
-        log = (log_dir / f'{robot}.log').read_text(errors='replace')
-        waits = [float(x) for x in re.findall(r'waited ([0-9.]+) ms for', log)]
-        if waits or 'subscriptions matched after waiting' in log:
-            print(f'note: {robot}: the node waited for subscription matching {len(waits)} times '
-                  f'(max {max(waits, default=0):.1f} ms)', file=sys.stderr)
-        return Result(robot, int(np.median(points)), np.array(traj_ms), np.array(resp_ms),
-                      rate, len(load), failures[0])
     finally:
         for c in clients:
             node.destroy_client(c)
@@ -233,6 +262,18 @@ def measure(bench: Bench, robot: str, n_requests: int, warmup: int, per_client: 
         rc = stop_node(proc)
         if rc != 0:
             print(f'warning: {robot} node exited with {rc}', file=sys.stderr)
+    log = (log_dir / f'{robot}.log').read_text(errors='replace')   # complete once the node exited
+    waits = [float(x) for x in re.findall(r'waited ([0-9.]+) ms for', log)]
+    if waits or 'subscriptions matched after waiting' in log:
+        print(f'note: {robot}: the node waited for subscription matching {len(waits)} times '
+              f'(max {max(waits, default=0):.1f} ms)', file=sys.stderr)
+    # The node logs one 'plan:' line per successful plan, in order (the warm-up requests fail):
+    # the first warmup + n_requests are the sequential ones.
+    stages = [sum(map(float, m.groups())) for m in _PLAN_LINE.finditer(log)][warmup:warmup + n_requests]
+    if len(stages) != len(traj_ms):
+        raise RuntimeError(f'{robot}: {len(stages)} plan lines in the node log for {len(traj_ms)} requests')
+    return Result(robot, int(np.median(points)), np.array(traj_ms), np.array(resp_ms),
+                  rate, len(load), failures[0], np.array(stages), node_cpu, bench_cpu)
 
 
 def breakdown(robot: str, n: int) -> dict[str, float]:
@@ -260,6 +301,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--warmup', type=int, default=5)
     parser.add_argument('--per-client', type=int, default=25, help='requests per client (4 clients)')
     parser.add_argument('--robots', nargs='+', default=['planar_3r', 'ur5e'])
+    parser.add_argument('--log-dir', type=Path, default=None,
+                        help='keep the node logs (<robot>.log) in this directory')
     args = parser.parse_args(argv)
     problem = netns.isolation_problem()
     if problem is not None:
@@ -270,9 +313,11 @@ def main(argv: list[str] | None = None) -> int:
     results = []
     try:
         with tempfile.TemporaryDirectory(prefix='node_latency_') as tmp:
+            log_dir = Path(tmp) if args.log_dir is None else args.log_dir
+            log_dir.mkdir(parents=True, exist_ok=True)
             for robot in args.robots:
                 results.append(measure(bench, robot, args.requests, args.warmup, args.per_client,
-                                       Path(tmp)))
+                                       log_dir))
     finally:
         bench.close()
     stages = {robot: breakdown(robot, min(args.requests, 30)) for robot in args.robots}
@@ -281,14 +326,20 @@ def main(argv: list[str] | None = None) -> int:
           f'{os.cpu_count()} cores, Python {platform.python_version()}, load average '
           f'{load[0]:.1f} / {load[1]:.1f}; {args.requests} sequential requests after '
           f'{args.warmup} warm-up)')
-    print('| robot | points | request->trajectory p50 / p90 / max (ms) | request->response p50 / p90 (ms) '
-          '| 4 clients: plans/s (requests, failures) |')
-    print('|---|---|---|---|---|')
+    print('| robot | points | request->trajectory p50 / p90 / max (ms) | of which node compute p50 '
+          '| ROS overhead p50 / p90 (ms) | request->response p50 / p90 (ms) '
+          '| 4 clients: plans/s (requests, failures) | CPU per plan under load: node / benchmark (ms) |')
+    print('|---|---|---|---|---|---|---|---|')
     for r in results:
         p = np.percentile(r.traj_ms, [50, 90])
         q = np.percentile(r.resp_ms, [50, 90])
+        o = np.percentile(r.overhead_ms, [50, 90])
         print(f'| {r.robot} | {r.points} | {p[0]:.1f} / {p[1]:.1f} / {r.traj_ms.max():.1f} | '
-              f'{q[0]:.1f} / {q[1]:.1f} | {r.rate:.1f} ({r.rate_requests}, {r.rate_failures}) |')
+              f'{np.median(r.compute_ms):.1f} | {o[0]:.1f} / {o[1]:.1f} | {q[0]:.1f} / {q[1]:.1f} | '
+              f'{r.rate:.1f} ({r.rate_requests}, {r.rate_failures}) | '
+              f'{r.node_cpu_ms:.1f} / {r.bench_cpu_ms:.1f} |')
+    print('(node compute: plan + timing + trajectory message as the node logs them; ROS overhead: '
+          'request->trajectory minus that, per request)')
     print()
     print('# where the time goes: node compute_plan in-process (median ms, no ROS transport)')
     keys = list(next(iter(stages.values())))

@@ -35,15 +35,18 @@ For rest-to-rest timing under box limits this is exactly time scaling as joint_t
 applies it (durations / f, velocities * f, accelerations * f**2, same path), sampled every
 ``sample_period`` s with positions, velocities and accelerations at every point.
 
-Executor model (issue 7): a MultiThreadedExecutor (4 threads) with three callback groups. The
-plan service is alone in a MutuallyExclusiveCallbackGroup, so plans are computed one at a time in
-request order, and each successful plan is published exactly once, by the request that computed
-it, before its response is sent. ``/joint_states`` has its own MutuallyExclusiveCallbackGroup and
-the parameter services stay in the node's default group, so state and parameter updates never
-wait behind a plan. Shared state is swapped atomically: the latest joint vector is an immutable
-tuple, and the configuration (robot, planner, limits) is an immutable :class:`PlannerConfig` that
-a request reads once at its start; a parameter change builds a new one (or rejects it with a
-reason) under a lock.
+Executor model (issue 7): plans are served by a thread of their own, the rest by a
+MultiThreadedExecutor (4 threads). The plan thread waits on the ``~/plan`` service alone (its
+callback group is never run by the executor), takes one request at a time and answers it before
+taking the next, so plans are computed one at a time in request order, and each successful plan is
+published exactly once, by the request that computed it, before its response is sent. (Serving
+plans outside rclpy's Python executor saves its per-callback wait-set rebuilds and thread hand-offs,
+a few ms per request; issue 6.) ``/joint_states`` has its own MutuallyExclusiveCallbackGroup and
+the parameter services stay in the node's default group, both on the executor, so state and
+parameter updates never wait behind a plan. Shared state is swapped atomically: the latest joint
+vector is an immutable tuple, and the configuration (robot, planner, limits) is an immutable
+:class:`PlannerConfig` that a request reads once at its start; a parameter change builds a new one
+(or rejects it with a reason) under a lock.
 
 Bounded time: each plan runs in a worker thread and the service waits at most ``plan_timeout`` s
 for it. A plan still computing then is abandoned: the request fails, and a lock shared by
@@ -71,9 +74,10 @@ from rclpy._rclpy_pybind11 import RCLError
 from nav_msgs.msg import Path
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.exceptions import ParameterException
+from rclpy.callback_groups import CallbackGroup, MutuallyExclusiveCallbackGroup
+from rclpy.exceptions import InvalidHandle, ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -401,6 +405,20 @@ def _joint_state_problem(message: str) -> str:
     return 'length'
 
 
+class _OwnThreadGroup(CallbackGroup):
+    """Callback group of entities served by a thread of their own: an executor never runs (nor
+    waits on) them."""
+
+    def can_execute(self, entity: Any) -> bool:
+        return False
+
+    def beginning_execution(self, entity: Any) -> bool:
+        return False
+
+    def ending_execution(self, entity: Any) -> None:
+        pass
+
+
 class GeodesicPlannerNode(Node):
     """The ``geodesic_planner`` node (see the module docstring for its interface).
 
@@ -431,7 +449,7 @@ class GeodesicPlannerNode(Node):
         self._publish_lock = threading.Lock()
         self._unmatched_graph_count: int | None = None
 
-        self._plan_group = MutuallyExclusiveCallbackGroup()
+        self._plan_group = _OwnThreadGroup()
         self._state_group = MutuallyExclusiveCallbackGroup()
         self.trajectory_pub = self.create_publisher(
             JointTrajectory, '~/joint_trajectory',
@@ -455,6 +473,10 @@ class GeodesicPlannerNode(Node):
                                    reliability=ReliabilityPolicy.RELIABLE,
                                    durability=DurabilityPolicy.VOLATILE),
             callback_group=self._plan_group)
+        self._plan_stop = threading.Event()
+        self._plan_thread = threading.Thread(target=self._serve_plans, name='plan_service',
+                                             daemon=True)
+        self._plan_thread.start()
         c = self._config
         service = self.resolve_service_name('~/plan')
         self.get_logger().info(
@@ -545,6 +567,44 @@ class GeodesicPlannerNode(Node):
                 f'{waited_ms:.0f} ms (QoS incompatible or still discovering?)')
         else:
             self.get_logger().info(f'waited {waited_ms:.1f} ms for {graph} subscriptions to match')
+
+    def _serve_plans(self) -> None:
+        """Plan thread: wait on ``~/plan`` alone, answer one request at a time, in order."""
+        srv = self.plan_srv
+        wait_set = _rclpy.WaitSet(0, 0, 0, 0, 1, 0, self.context.handle)
+        while not self._plan_stop.is_set():
+            try:
+                with self.context.handle, srv.handle:
+                    wait_set.clear_entities()
+                    wait_set.add_service(srv.handle)
+                    wait_set.wait(100_000_000)        # 0.1 s: the stop flag is checked between waits
+                    if srv.handle.pointer not in wait_set.get_ready_entities('service'):
+                        continue
+                    request, header = srv.handle.service_take_request(GetPlan.Request)
+            except (InvalidHandle, RCLError):         # the service or the context is gone
+                return
+            if header is None:
+                continue
+            try:
+                response = self._on_plan(request, GetPlan.Response())
+            except Exception as err:  # noqa: BLE001 - boundary: the plan thread keeps serving
+                self.get_logger().error(f'internal error: {type(err).__name__}: {err}')
+                response = GetPlan.Response()
+            try:
+                srv.send_response(response, header)
+            except (InvalidHandle, RCLError):
+                return
+
+    def stop_plan_service(self, timeout: float = 2.0) -> None:
+        """Stop the plan thread (a request in progress gets up to ``timeout`` s to be answered)."""
+        self._plan_stop.set()
+        if self._plan_thread.is_alive() and self._plan_thread is not threading.current_thread():
+            self._plan_thread.join(timeout)
+
+    def destroy_node(self) -> Any:
+        """Stop the plan thread, then destroy the node's entities."""
+        self.stop_plan_service()
+        return super().destroy_node()
 
     def _on_plan(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
         t0 = time.perf_counter()
