@@ -560,81 +560,28 @@ def _topp(ps: _PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class _TimeLaw:
-    """One rest-to-rest piece of the smoothed law: s(t) from s_start to s_end on [0, T* + 2 tau].
-
-    ``s*`` (the time-optimal law) is stored relative to ``s_start``: 0 before its start, ``span``
-    after its end.
-    """
-
-    t_k: np.ndarray    # (N+1,) times of the nodes in s*(t), s
-    s_k: np.ndarray    # (N+1,) node s relative to s_start
-    v_k: np.ndarray    # (N+1,) sdot* at the nodes, 1/s
-    u_k: np.ndarray    # (N,) sddot* per step, 1/s^2
-    S1_k: np.ndarray   # (N+1,) integral of s* from 0 to t_k
-    S2_k: np.ndarray   # (N+1,) double integral of s*
-    tau: float         # half-width of the triangular kernel, s
-    s_start: float
-    s_end: float
-
-    @property
-    def t_star(self) -> float:
-        return float(self.t_k[-1])
-
-    @property
-    def duration(self) -> float:
-        return self.t_star + 2.0 * self.tau
-
-    def segments(self) -> np.ndarray:
-        """s* as polynomial segments over all local times: rows (start, s0, v0, u, S1, S2), (6, N+2).
-
-        Segment 0 (before time 0; all zero) is the rest before the start, segments 1..N the steps
-        of s*, segment N+1 (from T*) the rest at ``span`` after the end; on a segment starting at
-        ``start``, with ``r = t - start``: ``s* = s0 + v0 r + u r^2 / 2`` and its integrals
-        ``S1 + s0 r + ...``, ``S2 + S1 r + ...``.
-        """
-        out = np.zeros((6, self.u_k.size + 2))
-        out[0, 1:] = self.t_k
-        out[1, 1:] = self.s_k
-        out[2, 1:-1] = self.v_k[:-1]
-        out[3, 1:-1] = self.u_k
-        out[4, 1:] = self.S1_k
-        out[5, 1:] = self.S2_k
-        return out
-
-
-def _build_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -> _TimeLaw:
-    """Exact piecewise-quadratic s*(t) of one rest-to-rest piece, its integrals and smoothing width."""
-    rel = s_nodes - s_nodes[0]
-    dl = np.diff(rel)
-    v = np.sqrt(x)
-    dt = 2.0 * dl / (v[:-1] + v[1:])
-    u = (x[1:] - x[:-1]) / (2.0 * dl)
-    t_k = np.concatenate([[0.0], np.cumsum(dt)])
-    inc1 = rel[:-1] * dt + v[:-1] * dt**2 / 2.0 + u * dt**3 / 6.0
-    S1 = np.concatenate([[0.0], np.cumsum(inc1)])
-    inc2 = S1[:-1] * dt + rel[:-1] * dt**2 / 2.0 + v[:-1] * dt**3 / 6.0 + u * dt**4 / 24.0
-    S2 = np.concatenate([[0.0], np.cumsum(inc2)])
-    tau = 0.5 * smoothing * float(t_k[-1])
-    return _TimeLaw(t_k=t_k, s_k=rel, v_k=v, u_k=u, S1_k=S1, S2_k=S2, tau=tau,
-                    s_start=float(s_nodes[0]), s_end=float(s_nodes[-1]))
-
-
-@dataclass(frozen=True, eq=False)
 class _PiecewiseLaw:
-    """Rest-to-rest laws one after the other (the motion rests at corners of the path).
+    """The smoothed law: rest-to-rest pieces one after the other (rests at corners of the path).
 
-    All pieces are evaluated together: their ``s*`` segments sit in one table, searched by the key
-    ``i * key_step + local time`` (piece ``i``; ``key_step`` exceeds twice every piece's duration,
-    so the pieces' key ranges do not overlap); polynomials are evaluated in local time.
+    Piece i runs from ``t_offsets[i]`` for ``T*_i + 2 tau_i``: its time-optimal law ``s*``
+    (piecewise quadratic, relative to the piece's start ``s_start``: 0 before it starts, ``span``
+    after it ends) smoothed by a triangular kernel of half-width ``tau_i``. All pieces are
+    evaluated together: their ``s*`` segments sit in one table, searched by the key
+    ``i * key_step + local time`` (``key_step`` exceeds four times every piece's duration, so the
+    pieces' key ranges do not overlap); polynomials are evaluated in local time.
     """
 
-    laws: tuple[_TimeLaw, ...]
-    t_offsets: np.ndarray  # (len(laws) + 1,) start time of each law; the last is the total duration
-    key_step: float = 0.0
-    seg_key: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (S,) segment starts (keys)
-    seg: np.ndarray = field(default_factory=lambda: np.zeros((6, 0)))  # (6, S): start, s0, v0, u, S1, S2
-    law_data: np.ndarray = field(default_factory=lambda: np.zeros((5, 0)))  # (5, L): tau, dur, s_start, span, s_end
+    t_offsets: np.ndarray  # (L + 1,) start time of each piece; the last is the total duration
+    pieces: np.ndarray     # (6, L): tau, duration, s_start, span, s_end, T* of each piece
+    key_step: float
+    seg_key: np.ndarray    # (S,) segment starts (keys)
+    seg: np.ndarray        # (6, S): start (local time), s0, v0, u, S1, S2 of each s* segment
+    node_s: np.ndarray     # (N + L,) path parameter at the nodes of s*, piece after piece
+    node_t: np.ndarray     # (N + L,) their times in s* delayed by tau
+
+    @property
+    def n_pieces(self) -> int:
+        return self.pieces.shape[1]
 
     @property
     def duration(self) -> float:
@@ -642,7 +589,12 @@ class _PiecewiseLaw:
 
     @property
     def t_star(self) -> float:
-        return float(sum(law.t_star for law in self.laws))
+        return float(sum(self.pieces[5].tolist()))
+
+    @property
+    def rests(self) -> tuple[float, ...]:
+        """Path parameters of the rests: each piece's start, then the last end."""
+        return (float(self.pieces[2, 0]),) + tuple(self.pieces[4].tolist())
 
     def times_at(self, s: np.ndarray) -> np.ndarray:
         """Approximate times (M,) at which the smoothed law passes the path parameters ``s`` (M,).
@@ -650,19 +602,17 @@ class _PiecewiseLaw:
         The time-optimal law's nodes delayed by tau (the smoothed law averages s* over
         [t - 2 tau, t]), linearly interpolated: cheap, and close enough to place check samples.
         """
-        s_nodes = np.concatenate([law.s_start + law.s_k for law in self.laws])
-        t_nodes = np.concatenate([off + law.tau + law.t_k for off, law in zip(self.t_offsets.tolist(), self.laws)])
-        return np.interp(s, s_nodes, t_nodes)
+        return np.interp(s, self.node_s, self.node_t)
 
     def evaluate(self, t: np.ndarray, jerk: bool = True
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """s, sdot, sddot and (if ``jerk``) sdddot at times t (M,) in [0, duration] (clipped)."""
         t = np.asarray(t, dtype=float)
         offs = self.t_offsets
-        nl = len(self.laws)
+        nl = self.n_pieces
         if nl == 1:
             local = _clip(t, 0.0, self.duration)
-            tau, dur, s_start, span, s_end = self.law_data[:, 0].tolist()
+            tau, dur, s_start, span, s_end = self.pieces[:5, 0].tolist()
             key_off = 0.0
         else:
             # Times within round-off of a rest snap onto it (exact rest there).
@@ -670,7 +620,7 @@ class _PiecewiseLaw:
             near = np.where(np.abs(t - offs[j - 1]) <= np.abs(t - offs[j]), offs[j - 1], offs[j])
             t = np.where(np.abs(t - near) <= 1e-12 * max(1.0, self.duration), near, t)
             idx = _clip(np.searchsorted(offs, t, side='right') - 1, 0, nl - 1)
-            tau, dur, s_start, span, s_end = self.law_data.take(idx, axis=1)
+            tau, dur, s_start, span, s_end = self.pieces[:5].take(idx, axis=1)
             local = _clip(np.where(t >= offs.take(idx + 1), dur, t - offs.take(idx)), 0.0, dur)
             key_off = idx * self.key_step
         # s* and its integrals at local - j tau, j = 0, 1, 2 (the smoothed law is their second
@@ -739,26 +689,75 @@ class _PiecewiseLaw:
 
 
 def _build_piecewise_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -> _PiecewiseLaw:
-    """Split the optimal profile at its rests (x = 0) and smooth each rest-to-rest piece."""
-    rests = np.flatnonzero(x <= 0.0).tolist()
-    laws = [_build_law(s_nodes[i:j + 1], x[i:j + 1], smoothing) for i, j in zip(rests[:-1], rests[1:])]
-    durations = [law.duration for law in laws]
-    offsets = np.concatenate([[0.0], np.cumsum(durations)])
+    """Split the optimal profile at its rests (x = 0) and smooth each rest-to-rest piece.
+
+    On each step of a piece ``sddot*`` is constant, so ``s*(t)`` is exactly piecewise quadratic;
+    its first and second integrals S1, S2 accumulate from the piece's start. All pieces at once:
+    per-piece running sums are row-wise sums of a padded (pieces, steps) array.
+    """
+    rests = np.flatnonzero(x <= 0.0)
+    n_steps = np.diff(rests)                       # (L,) steps per piece
+    L = n_steps.size
+    k = np.arange(rests[0], rests[-1])             # steps, piece after piece
+    piece = np.repeat(np.arange(L), n_steps)
+    first = rests[:-1]
+    pos = k - first[piece]                         # index of the step in its piece
+    start_s = s_nodes[first]
+    rel0 = s_nodes[k] - start_s[piece]             # s at the step's ends, relative to the piece
+    rel1 = s_nodes[k + 1] - start_s[piece]
+    dl = rel1 - rel0
+    v = np.sqrt(x)
+    v0 = v[k]
+    dt = 2.0 * dl / (v0 + v[k + 1])
+    u = (x[k + 1] - x[k]) / (2.0 * dl)
+
+    def running(vals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per piece, the running sum of ``vals`` (N,) at the end and at the start of each step."""
+        if L == 1:
+            end = np.cumsum(vals)
+        else:
+            pad = np.zeros((L, int(n_steps.max())))
+            pad[piece, pos] = vals
+            end = np.cumsum(pad, axis=1)[piece, pos]
+        begin = np.concatenate([[0.0], end[:-1]])
+        begin[pos == 0] = 0.0
+        return end, begin
+
+    t1, t0 = running(dt)
+    S1e, S1s = running(rel0 * dt + v0 * dt**2 / 2.0 + u * dt**3 / 6.0)
+    S2e, S2s = running(S1s * dt + rel0 * dt**2 / 2.0 + v0 * dt**3 / 6.0 + u * dt**4 / 24.0)
+    last = np.cumsum(n_steps) - 1                  # last step of each piece
+    t_star = t1[last]
+    tau = 0.5 * smoothing * t_star
+    dur = t_star + 2.0 * tau
+    offsets = np.concatenate([[0.0], np.cumsum(dur)])
+    span = rel1[last]
+    pieces = np.stack([tau, dur, start_s, span, s_nodes[rests[1:]], t_star])
+    # Segments: per piece, the rest before it, its steps, the rest after it.
+    idx = np.arange(L)
+    seg_steps = np.arange(k.size) + 2 * piece + 1
+    seg_after = last + 2 * idx + 2
+    seg_before = seg_after - n_steps - 1
+    seg = np.zeros((6, k.size + 2 * L))
+    seg[:, seg_steps] = (t0, rel0, v0, u, S1s, S2s)
+    seg[:, seg_after] = (t_star, span, np.zeros(L), np.zeros(L), S1e[last], S2e[last])
     # A power of two: i * key_step is exact; local times lie in [-2 tau, duration] within +-key_step / 4.
-    key_step = float(2.0 ** math.ceil(math.log2(4.0 * max(max(durations), 1e-300))))
-    parts = [law.segments() for law in laws]
-    seg = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
-    # Keys: piece i's leading rest from (i - 1/2) key_step (the first from -inf), its steps and
-    # trailing rest from i key_step + their local start times.
+    key_step = float(2.0 ** math.ceil(math.log2(4.0 * max(float(dur.max()), 1e-300))))
     seg_key = seg[0].copy()
-    first = 0
-    for i, part in enumerate(parts):
-        if i:
-            seg_key[first:first + part.shape[1]] += i * key_step
-        seg_key[first] = (i - 0.5) * key_step if i else -np.inf
-        first += part.shape[1]
-    law_data = np.array([[law.tau, law.duration, law.s_start, float(law.s_k[-1]), law.s_end] for law in laws]).T
-    return _PiecewiseLaw(tuple(laws), offsets, key_step, seg_key, seg, np.ascontiguousarray(law_data))
+    if L > 1:
+        seg_key[seg_steps] += piece * key_step
+        seg_key[seg_after] += idx * key_step
+    seg_key[seg_before] = (idx - 0.5) * key_step
+    seg_key[0] = -np.inf
+    # Nodes of s* (both ends of every piece), delayed by tau, for placing check samples.
+    node_s = np.empty(k.size + L)
+    node_t = np.empty(k.size + L)
+    node_steps = np.arange(k.size) + piece
+    node_s[node_steps] = start_s[piece] + rel0
+    node_t[node_steps] = (offsets[:-1] + tau)[piece] + t0
+    node_s[last + idx + 1] = start_s + span
+    node_t[last + idx + 1] = offsets[:-1] + tau + t_star
+    return _PiecewiseLaw(offsets, pieces, key_step, seg_key, seg, node_s, node_t)
 
 
 @dataclass(frozen=True, eq=False)
@@ -969,7 +968,7 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
     # Dense check of the smoothed law against the full limits; stretch time if needed.
     m = int(check_samples) if check_samples is not None else max(4000, 20 * ps.s.size)
     t_chk = np.linspace(0.0, law.duration, max(m, 10))
-    if len(law.laws) > 1:
+    if law.n_pieces > 1:
         t_chk = np.union1d(t_chk, law.t_offsets)
     # Also samples about uniform in s: a long law can cross a stretch of the path in a fraction
     # of its duration, where samples uniform in t are sparse. All in order of time (two sorted
@@ -1014,7 +1013,7 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
             raise LimitError(
                 f'duration {duration:.6g} s is shorter than the minimum {t_min:.6g} s for these limits')
         T = duration
-    rests = (float(law.laws[0].s_start),) + tuple(float(w.s_end) for w in law.laws)
+    rests = law.rests
     scale = float(T / law.duration)
     rest_times = tuple(float(t) * scale for t in law.t_offsets[:-1]) + (float(T),)
     return Trajectory(path=path, joint_names=joint_names, duration=float(T), max_velocity=vmax,
