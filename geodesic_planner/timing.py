@@ -244,38 +244,28 @@ def _sample_path(path: Any, grid_points: int) -> _PathSamples:
     return _PathSamples(nodes, aL, aR, bL, bR, cL, cR, stop)
 
 
-def _merge_samples(ps: _PathSamples, s_new: np.ndarray, a: np.ndarray, b: np.ndarray,
-                   c: np.ndarray) -> _PathSamples:
-    """Insert exact samples at new (non-breakpoint) nodes."""
-    s_all = np.concatenate([ps.s, s_new])
-    order = np.argsort(s_all, kind='stable')
-
-    def cat(old: np.ndarray, new: np.ndarray) -> np.ndarray:
-        return np.concatenate([old, new])[order]
-
-    return _PathSamples(s_all[order], cat(ps.aL, a), cat(ps.aR, a), cat(ps.bL, b), cat(ps.bR, b),
-                        cat(ps.cL, c), cat(ps.cR, c), cat(ps.stop, np.zeros(s_new.size, dtype=bool)))
-
-
-def _interpolation_suspects(ps: _PathSamples, tol: float) -> np.ndarray:
+def _interpolation_suspects(s: np.ndarray, D: np.ndarray, dof: int, tol: float) -> np.ndarray:
     """Steps whose cubic-Hermite interpolation of q' or q'' is not trustworthy, (n,) bool.
 
-    On each step two independent mid-point estimates are compared: q'(mid) from the Hermite of
-    q' (slopes q'') and from integrating the Hermite of q'' (slopes q'''); q''(mid) from the
-    Hermite of q'' and from integrating q''' interpolated linearly. For a smooth path they agree to
-    O(h^4 q^(5)) and O(h^3 q^(5)); a disagreement above ``tol`` times the joint's scale flags the
+    ``D`` (n+1, 6 dof) holds the node data side by side: q' left, right, q'' left, right, q'''
+    left, right. On each step two independent mid-point estimates are compared: q'(mid) from the
+    Hermite of q' (slopes q'') and from integrating the Hermite of q'' (slopes q'''); q''(mid) from
+    the Hermite of q'' and from integrating q''' interpolated linearly. For a smooth path they agree
+    to O(h^4 q^(5)) and O(h^3 q^(5)); a disagreement above ``tol`` times the joint's scale flags the
     step. Nothing is divided by h, so slightly inconsistent derivative data (a collocation
     solution) does not make the indicator grow under refinement.
     """
-    h = np.diff(ps.s)[:, None]
-    a0, a1, b0, b1 = ps.aR[:-1], ps.aL[1:], ps.bR[:-1], ps.bL[1:]
-    c0, c1 = ps.cR[:-1], ps.cL[1:]
+    h = np.diff(s)[:, None]
+    a0, a1 = D[:-1, dof:2 * dof], D[1:, :dof]
+    b0, b1 = D[:-1, 3 * dof:4 * dof], D[1:, 2 * dof:3 * dof]
+    c0, c1 = D[:-1, 5 * dof:], D[1:, 4 * dof:5 * dof]
     a_mid_1 = 0.5 * (a0 + a1) + h * (b0 - b1) / 8.0
     a_mid_2 = a0 + h * (13.0 / 32.0 * b0 + 11.0 / 192.0 * h * c0 + 3.0 / 32.0 * b1 - 5.0 / 192.0 * h * c1)
     b_mid_1 = 0.5 * (b0 + b1) + h * (c0 - c1) / 8.0
     b_mid_2 = b0 + h * (3.0 * c0 + c1) / 8.0
-    scale_a = np.maximum(np.abs(ps.aR).max(axis=0), np.abs(ps.aL).max(axis=0))
-    scale_b = np.maximum(np.abs(ps.bR).max(axis=0), np.abs(ps.bL).max(axis=0)) + scale_a
+    scale = np.abs(D[:, :4 * dof]).max(axis=0).reshape(4, dof)
+    scale_a = np.maximum(scale[1], scale[0])
+    scale_b = np.maximum(scale[3], scale[2]) + scale_a
     tiny = 1e-300
     bad = ((np.abs(a_mid_1 - a_mid_2) > tol * (scale_a + tiny))
            | (np.abs(b_mid_1 - b_mid_2) > tol * (scale_b + tiny)))
@@ -285,19 +275,32 @@ def _interpolation_suspects(ps: _PathSamples, tol: float) -> np.ndarray:
 def _refine_adaptively(path: Any, ps: _PathSamples, tol: float = 1e-5, max_rounds: int = 12,
                        max_nodes: int = 2000) -> _PathSamples:
     """Bisect the steps where interpolation is not trustworthy, with exact path evaluations."""
+    s, stop = ps.s, ps.stop
+    dof = ps.aR.shape[1]
+    D = np.hstack([ps.aL, ps.aR, ps.bL, ps.bR, ps.cL, ps.cR])
+    refined = False
     for _ in range(max_rounds):
-        bad = _interpolation_suspects(ps, tol)
-        bad &= np.diff(ps.s) > 1e-7
-        if not np.any(bad) or ps.s.size >= max_nodes:
+        bad = _interpolation_suspects(s, D, dof, tol)
+        bad &= np.diff(s) > 1e-7
+        if not np.any(bad) or s.size >= max_nodes:
             break
-        idx = np.flatnonzero(bad)[: max_nodes - ps.s.size]
-        s_new = 0.5 * (ps.s[idx] + ps.s[idx + 1])
+        idx = np.flatnonzero(bad)[: max_nodes - s.size]
+        s_new = 0.5 * (s[idx] + s[idx + 1])
         _, a, b, c = (np.asarray(v, dtype=float) for v in path.evaluate(s_new))
-        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(c))):
+        new = np.hstack([a, a, b, b, c, c])
+        if not np.all(np.isfinite(new)):
             raise LimitError('path derivatives contain NaN or inf')
-        ps = _merge_samples(ps, s_new, a, b, c)
-    return ps
-
+        # Insert the new (non-breakpoint) nodes in order of s.
+        s_all = np.concatenate([s, s_new])
+        order = np.argsort(s_all, kind='stable')
+        s = s_all[order]
+        D = np.concatenate([D, new])[order]
+        stop = np.concatenate([stop, np.zeros(s_new.size, dtype=bool)])[order]
+        refined = True
+    if not refined:
+        return ps
+    aL, aR, bL, bR, cL, cR = (np.ascontiguousarray(D[:, i * dof:(i + 1) * dof]) for i in range(6))
+    return _PathSamples(s, aL, aR, bL, bR, cL, cR, stop)
 
 
 #: Rounds of the row-guessing passes of _topp before the remaining steps use all rows.
