@@ -72,16 +72,22 @@ def arrays_to_joint_trajectory(
     pos = np.asarray(positions, dtype=float)
     vel = None if velocities is None else np.asarray(velocities, dtype=float)
     acc = None if accelerations is None else np.asarray(accelerations, dtype=float)
+    # time_from_start in integer ns, rounded like seconds_to_duration (half to even), split
+    # with floor division; written into each point's own Duration (no extra objects).
+    ns = np.rint(np.asarray(t, dtype=float).reshape(-1) * 1e9).astype(np.int64)
+    secs, nanosecs = np.divmod(ns, 1_000_000_000)
     points = []
     # array.array('d') rows skip the generated setters' per-element checks (much faster).
-    for i, ti in enumerate(np.asarray(t, dtype=float)):
+    for i, (sec, nanosec) in enumerate(zip(secs.tolist(), nanosecs.tolist())):
         pt = JointTrajectoryPoint()
         pt.positions = _darray(pos[i])
         if vel is not None:
             pt.velocities = _darray(vel[i])
         if acc is not None:
             pt.accelerations = _darray(acc[i])
-        pt.time_from_start = seconds_to_duration(ti)
+        d = pt.time_from_start
+        d.sec = sec
+        d.nanosec = nanosec
         points.append(pt)
     msg.points = points
     return msg
@@ -223,11 +229,17 @@ def poses_to_path(Ts: np.ndarray, frame_id: str, stamp: Time | None = None) -> P
     Ts = np.asarray(Ts, dtype=float).reshape(-1, 4, 4)
     header = Header(frame_id=frame_id, stamp=stamp if stamp is not None else Time())
     quats = matrix_to_quat(Ts[:, :3, :3]).tolist() if len(Ts) else []
-    poses = [
-        PoseStamped(header=header, pose=Pose(position=Point(x=p[0], y=p[1], z=p[2]),
-                                             orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])))
-        for p, q in zip(Ts[:, :3, 3].tolist(), quats)
-    ]
+    # Default-constructed messages filled through their setters: keyword construction builds
+    # (and drops) a default value for every field it is given, about 2.5x slower here.
+    poses = []
+    for p, q in zip(Ts[:, :3, 3].tolist(), quats):
+        ps = PoseStamped()
+        ps.header = header
+        pose = ps.pose
+        pos, ori = pose.position, pose.orientation
+        pos.x, pos.y, pos.z = p
+        ori.x, ori.y, ori.z, ori.w = q
+        poses.append(ps)
     return Path(header=header, poses=poses)
 
 
