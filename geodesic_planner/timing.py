@@ -247,8 +247,8 @@ def _sample_path(path: Any, grid_points: int) -> _PathSamples:
 def _interpolation_suspects(s: np.ndarray, D: np.ndarray, dof: int, tol: float) -> np.ndarray:
     """Steps whose cubic-Hermite interpolation of q' or q'' is not trustworthy, (n,) bool.
 
-    ``D`` (n+1, 6 dof) holds the node data side by side: q' left, right, q'' left, right, q'''
-    left, right. On each step two independent mid-point estimates are compared: q'(mid) from the
+    ``D`` (n+1, 6 dof) holds the node data side by side: q', q'', q''' from the left, then from
+    the right. On each step two independent mid-point estimates are compared: q'(mid) from the
     Hermite of q' (slopes q'') and from integrating the Hermite of q'' (slopes q'''); q''(mid) from
     the Hermite of q'' and from integrating q''' interpolated linearly. For a smooth path they agree
     to O(h^4 q^(5)) and O(h^3 q^(5)); a disagreement above ``tol`` times the joint's scale flags the
@@ -256,20 +256,17 @@ def _interpolation_suspects(s: np.ndarray, D: np.ndarray, dof: int, tol: float) 
     solution) does not make the indicator grow under refinement.
     """
     h = np.diff(s)[:, None]
-    a0, a1 = D[:-1, dof:2 * dof], D[1:, :dof]
-    b0, b1 = D[:-1, 3 * dof:4 * dof], D[1:, 2 * dof:3 * dof]
-    c0, c1 = D[:-1, 5 * dof:], D[1:, 4 * dof:5 * dof]
-    a_mid_1 = 0.5 * (a0 + a1) + h * (b0 - b1) / 8.0
+    d2 = 2 * dof
+    # (q', q'') and their slopes (q'', q''') at both ends of each step: the Hermite mid-points.
+    mid_1 = 0.5 * (D[:-1, 3 * dof:3 * dof + d2] + D[1:, :d2]) + h * (D[:-1, 4 * dof:] - D[1:, dof:dof + d2]) / 8.0
+    a0, b0, c0 = D[:-1, 3 * dof:4 * dof], D[:-1, 4 * dof:5 * dof], D[:-1, 5 * dof:]
+    b1, c1 = D[1:, dof:2 * dof], D[1:, 2 * dof:3 * dof]
     a_mid_2 = a0 + h * (13.0 / 32.0 * b0 + 11.0 / 192.0 * h * c0 + 3.0 / 32.0 * b1 - 5.0 / 192.0 * h * c1)
-    b_mid_1 = 0.5 * (b0 + b1) + h * (c0 - c1) / 8.0
     b_mid_2 = b0 + h * (3.0 * c0 + c1) / 8.0
-    scale = np.abs(D[:, :4 * dof]).max(axis=0).reshape(4, dof)
-    scale_a = np.maximum(scale[1], scale[0])
-    scale_b = np.maximum(scale[3], scale[2]) + scale_a
+    scale = np.abs(D).max(axis=0).reshape(2, 3, dof).max(axis=0)
     tiny = 1e-300
-    bad = ((np.abs(a_mid_1 - a_mid_2) > tol * (scale_a + tiny))
-           | (np.abs(b_mid_1 - b_mid_2) > tol * (scale_b + tiny)))
-    return bad.any(axis=1)
+    limit = tol * (np.concatenate([scale[0], scale[1] + scale[0]]) + tiny)
+    return (np.abs(mid_1 - np.concatenate([a_mid_2, b_mid_2], axis=1)) > limit).any(axis=1)
 
 
 def _refine_adaptively(path: Any, ps: _PathSamples, tol: float = 1e-5, max_rounds: int = 12,
@@ -277,7 +274,7 @@ def _refine_adaptively(path: Any, ps: _PathSamples, tol: float = 1e-5, max_round
     """Bisect the steps where interpolation is not trustworthy, with exact path evaluations."""
     s, stop = ps.s, ps.stop
     dof = ps.aR.shape[1]
-    D = np.hstack([ps.aL, ps.aR, ps.bL, ps.bR, ps.cL, ps.cR])
+    D = np.hstack([ps.aL, ps.bL, ps.cL, ps.aR, ps.bR, ps.cR])
     refined = False
     for _ in range(max_rounds):
         bad = _interpolation_suspects(s, D, dof, tol)
@@ -287,7 +284,7 @@ def _refine_adaptively(path: Any, ps: _PathSamples, tol: float = 1e-5, max_round
         idx = np.flatnonzero(bad)[: max_nodes - s.size]
         s_new = 0.5 * (s[idx] + s[idx + 1])
         _, a, b, c = (np.asarray(v, dtype=float) for v in path.evaluate(s_new))
-        new = np.hstack([a, a, b, b, c, c])
+        new = np.hstack([a, b, c, a, b, c])
         if not np.all(np.isfinite(new)):
             raise LimitError('path derivatives contain NaN or inf')
         # Insert the new (non-breakpoint) nodes in order of s.
@@ -299,7 +296,7 @@ def _refine_adaptively(path: Any, ps: _PathSamples, tol: float = 1e-5, max_round
         refined = True
     if not refined:
         return ps
-    aL, aR, bL, bR, cL, cR = (np.ascontiguousarray(D[:, i * dof:(i + 1) * dof]) for i in range(6))
+    aL, bL, cL, aR, bR, cR = (np.ascontiguousarray(D[:, i * dof:(i + 1) * dof]) for i in range(6))
     return _PathSamples(s, aL, aR, bL, bR, cL, cR, stop)
 
 
