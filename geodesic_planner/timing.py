@@ -14,7 +14,10 @@ turns that into a practical time law ``s(t)`` for any path ``q(s)``, ``s`` in [0
    ``|q'(s) sdot| <= vmax`` and ``|q'(s) sddot + q''(s) sdot^2| <= amax`` per joint. ``sddot`` is
    constant per step, so the optimal law ``s*(t)`` is piecewise quadratic in time; its duration
    is :attr:`Trajectory.topp_duration`. Where q' jumps (a corner between the pieces of a
-   piecewise geodesic) the profile is forced to rest.
+   piecewise geodesic) the profile is forced to rest. Both passes are min-of-affine recursions;
+   they are solved in closed form with one (iteratively chosen) constraint row per step and
+   accepted only when every step satisfies the recursion over all rows to 1e-12, else by loops
+   over guessed rows verified against all rows (the floats of a loop over all rows).
 3. **Smoothing**: ``s*(t)`` has acceleration jumps (bang-bang), including at both ends. Each
    rest-to-rest piece is convolved with a triangular kernel of half-width
    ``tau = smoothing * T* / 2``, done exactly:
@@ -22,7 +25,9 @@ turns that into a practical time law ``s(t)`` for any path ``q(s)``, ``s`` in [0
    of ``s*`` (constant before its start and after its end). Hence ``sddot`` is the second central
    difference of ``s*`` (continuous), the jerk is bounded, and every rest (both ends, corners)
    has zero velocity AND zero acceleration. Each piece lasts ``T* + 2 tau``.
-4. **Guarantee**: the law is checked on a dense time grid against the full limits; if smoothing
+4. **Guarantee**: the law is checked on a dense time grid against the full limits (plus
+   samples about uniform in s, placed from the nodes of ``s*`` delayed by tau, where the law
+   crosses the path fast); if smoothing
    pushed any joint over a limit, time is stretched uniformly (``t -> lambda t`` divides
    velocities by ``lambda`` and accelerations by ``lambda^2``) until every sample is within
    ``1 - CHECK_MARGIN`` of the limits; the samples nearest a limit are re-checked with the
