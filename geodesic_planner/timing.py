@@ -635,7 +635,8 @@ class _PiecewiseLaw:
         m = local.size
         key = q + np.concatenate([key_off] * 3) if nl > 1 else q
         runs = key.reshape(3, m)
-        if m > 1 and bool(np.all(runs[:, 1:] >= runs[:, :-1])):
+        ordered = m > 1 and bool(np.all(runs[:, 1:] >= runs[:, :-1]))
+        if ordered:
             # Sorted times (the usual case): each run's samples per segment, by searching the
             # segment starts in the run, then one repeat of the table.
             counts = [np.diff(np.searchsorted(run, self.seg_key, side='left'), append=m) for run in runs]
@@ -682,6 +683,15 @@ class _PiecewiseLaw:
         else:
             sddd = None
         # Exact ends: at rest, at s_start and s_end.
+        if ordered and nl == 1:  # the ends are a prefix and a suffix
+            first = int(np.searchsorted(local, 0.0, side='right'))   # local <= 0
+            last = int(np.searchsorted(local, dur, side='left'))     # local >= dur from here
+            s[:first] = s_start
+            s[last:] = s_end
+            for arr in (sd, sdd) if sddd is None else (sd, sdd, sddd):
+                arr[:first] = 0.0
+                arr[last:] = 0.0
+            return s, sd, sdd, sddd
         end = local >= dur
         start_ = local <= 0.0
         s = np.where(end, s_end, np.where(start_, s_start, s))
