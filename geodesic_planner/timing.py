@@ -322,8 +322,10 @@ _CLOSED_FORM_RTOL = 1e-12
 
 def _sums(terms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Prefix and suffix sums of ``terms`` (n,): ``P_k = sum_{i<k}``, ``S_k = sum_{i>=k}``, each (n+1,)."""
-    prefix = np.concatenate([[0.0], np.cumsum(terms)])
-    suffix = np.concatenate([np.cumsum(terms[::-1])[::-1], [0.0]])
+    prefix = np.zeros(terms.size + 1)
+    suffix = np.zeros(terms.size + 1)
+    np.cumsum(terms, out=prefix[1:])
+    np.cumsum(terms[::-1], out=suffix[-2::-1])
     return prefix, suffix
 
 
@@ -346,11 +348,13 @@ def _backward_closed(A: np.ndarray, B: np.ndarray, static: np.ndarray
     st = np.append(static, 0.0)
     with np.errstate(all='ignore'):
         for _ in range(_GUESS_ITERATIONS):
-            L = np.concatenate([[0.0], np.cumsum(np.log(A[steps, g]))])
+            L = np.zeros(n + 1)
+            np.cumsum(np.log(A[steps, g]), out=L[1:])
             eL = np.exp(L)
             P, S = _sums(eL[:-1] * B[steps, g])
-            m1 = np.minimum.accumulate((eL * st + P)[::-1])[::-1]
-            m2 = np.minimum.accumulate((eL * st - S)[::-1])[::-1]
+            est = eL * st
+            m1 = np.minimum.accumulate((est + P)[::-1])[::-1]
+            m2 = np.minimum.accumulate((est - S)[::-1])[::-1]
             # e^{L_k} h_k from the smaller of the prefix and suffix sums (less cancellation).
             h = np.where(P <= S, m1 - P, S + m2) / eL
             vals = A * h[1:, None] + B
@@ -358,7 +362,7 @@ def _backward_closed(A: np.ndarray, B: np.ndarray, static: np.ndarray
             exact = np.minimum(static, vals[steps, act])
             if bool(np.all(np.abs(exact - h[:-1]) <= _CLOSED_FORM_RTOL * exact)):
                 return h, act, first
-            if np.array_equal(act, g):
+            if bool((act == g).all()):
                 break
             g = act
     return None, g, first
@@ -382,11 +386,13 @@ def _forward_closed(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.
     top[0] = 0.0
     with np.errstate(all='ignore'):
         for _ in range(_GUESS_ITERATIONS):
-            L = np.concatenate([[0.0], np.cumsum(np.log(np.maximum(1.0 + two_h * alpha[steps, g], 1e-6)))])
+            L = np.zeros(n + 1)
+            np.cumsum(np.log(np.maximum(1.0 + two_h * alpha[steps, g], 1e-6)), out=L[1:])
             eL = np.exp(L)
             P, S = _sums(two_h * d[steps, g] / eL[1:])
-            m1 = np.minimum.accumulate(top / eL - P)
-            m2 = np.minimum.accumulate(top / eL + S)
+            tl = top / eL
+            m1 = np.minimum.accumulate(tl - P)
+            m2 = np.minimum.accumulate(tl + S)
             x = np.where(P <= S, P + m1, m2 - S) * eL
             x0 = x[:-1]
             vals = alpha * x0[:, None] + d
@@ -395,7 +401,7 @@ def _forward_closed(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.
             exact = np.minimum(np.maximum(x0 + two_h * u, 0.0), hi1)
             if bool(np.all(np.abs(exact - x[1:]) <= _CLOSED_FORM_RTOL * exact)):
                 return x, act, first
-            if np.array_equal(act, g):
+            if bool((act == g).all()):
                 break
             g = act
     return None, g, first
