@@ -78,6 +78,7 @@ from rclpy.callback_groups import CallbackGroup, MutuallyExclusiveCallbackGroup
 from rclpy.exceptions import InvalidHandle, ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.impl.logging_severity import LoggingSeverity
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -397,6 +398,19 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
 
 # --------------------------------------------------------------------------- node
 
+def _log(logger: Any, severity: LoggingSeverity, message: str) -> None:
+    """Log like ``logger.info``/``error`` without rclpy's caller lookup.
+
+    rclpy's logger finds its caller through ``inspect`` (source files stat-ed and read) on every
+    call, about 0.3 ms; this goes straight to rcutils (about 0.01 ms) with the caller's
+    function, file and line. Used for the per-request lines (no throttling or other filters).
+    """
+    if logger.is_enabled_for(severity):
+        frame = sys._getframe(1)
+        _rclpy.rclpy_logging_rcutils_log(severity, logger.name, message, frame.f_code.co_name,
+                                         frame.f_code.co_filename, frame.f_lineno)
+
+
 def _joint_state_problem(message: str) -> str:
     """Category of a rejected joint state (warnings are rate-limited per category)."""
     for key in ('duplicate', 'missing', 'none of', 'non-finite'):
@@ -647,27 +661,28 @@ class GeodesicPlannerNode(Node):
                 state['abandoned'] = not state['published']
             if state['abandoned']:
                 self._abandoned += 1
-                self.get_logger().error(
-                    f'plan failed: timed out after {config.plan_timeout:g} s (plan_timeout); the '
-                    f'computation is abandoned and its result discarded ({self._abandoned} so far)')
+                _log(self.get_logger(), LoggingSeverity.ERROR,
+                     f'plan failed: timed out after {config.plan_timeout:g} s (plan_timeout); the '
+                     f'computation is abandoned and its result discarded ({self._abandoned} so far)')
                 return response
             done.wait()   # the trajectory is out; its tool path follows (bounded, no solver)
         err = box.get('error')
         if isinstance(err, GeodesicPlannerError):
-            self.get_logger().error(f'plan failed: {err}')
+            _log(self.get_logger(), LoggingSeverity.ERROR, f'plan failed: {err}')
             return response
         if err is not None:
             after = ' (after publishing the trajectory)' if state['published'] else ''
-            self.get_logger().error(f'internal error{after}: {type(err).__name__}: {err}')
+            _log(self.get_logger(), LoggingSeverity.ERROR,
+                 f'internal error{after}: {type(err).__name__}: {err}')
             return response
         result: PlanResult = box['result']
         self.marker_pub.publish(result.markers)
         response.plan = result.path
         total_ms = (time.perf_counter() - t0) * 1e3
-        self.get_logger().info(
-            f'plan: {result.points} points, {result.duration:.2f} s, solver '
-            f'{result.solver_iterations} it, {result.solver_ms:.1f} ms (request {total_ms:.1f} ms: '
-            + ', '.join(f'{k} {v:.1f}' for k, v in result.stage_ms.items()) + ')')
+        _log(self.get_logger(), LoggingSeverity.INFO,
+             f'plan: {result.points} points, {result.duration:.2f} s, solver '
+             f'{result.solver_iterations} it, {result.solver_ms:.1f} ms (request {total_ms:.1f} ms: '
+             + ', '.join(f'{k} {v:.1f}' for k, v in result.stage_ms.items()) + ')')
         return response
 
 
