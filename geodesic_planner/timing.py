@@ -344,8 +344,13 @@ def _backward_closed(A: np.ndarray, B: np.ndarray, static: np.ndarray
     """
     n = static.size
     steps = np.arange(n)
-    g = first = np.argmin(B, axis=1)
     st = np.append(static, 0.0)
+    with np.errstate(all='ignore'):
+        # First guess: the rows lowest at the solution for a_k = 1 and the rows lowest at h = 0.
+        C = np.zeros(n + 1)
+        np.cumsum(B.min(axis=1), out=C[1:])
+        h0 = np.minimum.accumulate((st + C)[::-1])[::-1] - C
+        g = first = np.argmin(A * h0[1:, None] + B, axis=1)
     with np.errstate(all='ignore'):
         for _ in range(_GUESS_ITERATIONS):
             L = np.zeros(n + 1)
@@ -381,9 +386,14 @@ def _forward_closed(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.
     n = two_h.size
     steps = np.arange(n)
     hi1 = hi[1:]
-    g = first = np.argmin(alpha * hi[:-1, None] + d, axis=1)
     top = hi.copy()
     top[0] = 0.0
+    with np.errstate(all='ignore'):
+        # First guess: the rows lowest at the solution for p_k = 1 and the rows lowest at x = 0.
+        C = np.zeros(n + 1)
+        np.cumsum(two_h * d.min(axis=1), out=C[1:])
+        x_1 = C + np.minimum.accumulate(top - C)
+        g = first = np.argmin(alpha * x_1[:-1, None] + d, axis=1)
     with np.errstate(all='ignore'):
         for _ in range(_GUESS_ITERATIONS):
             L = np.zeros(n + 1)
