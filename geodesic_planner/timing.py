@@ -1006,6 +1006,7 @@ def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration
     # runs: a cheap stable sort), hence of s, for the interpolation.
     t_chk = np.concatenate([t_chk, law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS))])
     t_chk = t_chk[np.argsort(t_chk, kind='stable')]
+    t_chk = t_chk[np.concatenate([[True], t_chk[1:] > t_chk[:-1]])]  # distinct samples
     s, sd, sdd, _ = law.evaluate(t_chk, jerk=False)
     a, b = ps.interpolate_t(s)
     vel = a * sd
