@@ -604,6 +604,11 @@ class _PiecewiseLaw:
     def n_pieces(self) -> int:
         return self.pieces.shape[1]
 
+    @functools.cached_property
+    def seg_3(self) -> np.ndarray:
+        """The segment table three times side by side, (6, 3 S) (one copy per shift of the kernel)."""
+        return np.tile(self.seg, 3)
+
     @property
     def duration(self) -> float:
         return float(self.t_offsets[-1])
@@ -654,12 +659,14 @@ class _PiecewiseLaw:
         ordered = m > 1 and bool(np.all(runs[:, 1:] >= runs[:, :-1]))
         if ordered:
             # Sorted times (the usual case): each run's samples per segment, by searching the
-            # segment starts in the run, then one repeat of the table.
-            counts = [np.diff(np.searchsorted(run, self.seg_key, side='left'), append=m) for run in runs]
-            cols = np.repeat(np.tile(self.seg, 3), np.concatenate(counts), axis=1)
+            # segment starts in the run, then repeats of the table rows (one array per row: large
+            # 2-D temporaries cost more, in fresh memory, than the extra calls).
+            counts = np.concatenate([np.diff(np.searchsorted(run, self.seg_key, side='left'), append=m)
+                                     for run in runs])
+            start, s0, v0, u, S1, S2 = (np.repeat(row, counts) for row in self.seg_3)
         else:
-            cols = self.seg.take(np.searchsorted(self.seg_key, key, side='right') - 1, axis=1)
-        start, s0, v0, u, S1, S2 = cols
+            k = np.searchsorted(self.seg_key, key, side='right') - 1
+            start, s0, v0, u, S1, S2 = (row.take(k) for row in self.seg)
         # Horner, in place: S2 + r (S1 + r (s0 / 2 + r (v0 / 6 + r u / 24))), and likewise.
         r = q - start
         ru = r * u
