@@ -176,21 +176,27 @@ class _PathSamples:
     def _interpolate_steps(self, k: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """q' and q'' at ``s_k + r`` on steps ``k`` (M,); each (dof, M)."""
         n = self.s.size - 1
-        coef = self._coef.reshape(-1, n)
+        coef = self._coef
         if k.size > 1 and bool(np.all(k[1:] >= k[:-1])):  # sorted: repeating is cheaper
-            c = np.repeat(coef, np.bincount(k, minlength=n), axis=1)
+            counts = np.bincount(k, minlength=n)
+
+            def at(i: int) -> np.ndarray:
+                return np.repeat(coef[i], counts, axis=1)
         else:
-            c = coef.take(k, axis=1)
-        c = c.reshape(8, -1, k.size)
-        a = c[3] * r
-        b = c[7] * r
+            def at(i: int) -> np.ndarray:
+                return coef[i].take(k, axis=1)
+        # Horner, one coefficient block at a time (no large gathered table).
+        a = at(3)
+        a *= r
+        b = at(7)
+        b *= r
         for i in (2, 1):
-            a += c[i]
+            a += at(i)
             a *= r
-            b += c[4 + i]
+            b += at(4 + i)
             b *= r
-        a += c[0]
-        b += c[4]
+        a += at(0)
+        b += at(4)
         return a, b
 
     def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
