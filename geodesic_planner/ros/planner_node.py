@@ -35,18 +35,19 @@ For rest-to-rest timing under box limits this is exactly time scaling as joint_t
 applies it (durations / f, velocities * f, accelerations * f**2, same path), sampled every
 ``sample_period`` s with positions, velocities and accelerations at every point.
 
-Executor model (issue 7): plans are served by a thread of their own, the rest by a
-MultiThreadedExecutor (4 threads). The plan thread waits on the ``~/plan`` service alone (its
-callback group is never run by the executor), takes one request at a time and answers it before
-taking the next, so plans are computed one at a time in request order, and each successful plan is
-published exactly once, by the request that computed it, before its response is sent. (Serving
-plans outside rclpy's Python executor saves its per-callback wait-set rebuilds and thread hand-offs,
-a few ms per request; issue 6.) ``/joint_states`` has its own MutuallyExclusiveCallbackGroup and
-the parameter services stay in the node's default group, both on the executor, so state and
-parameter updates never wait behind a plan. Shared state is swapped atomically: the latest joint
-vector is an immutable tuple, and the configuration (robot, planner, limits) is an immutable
-:class:`PlannerConfig` that a request reads once at its start; a parameter change builds a new one
-(or rejects it with a reason) under a lock.
+Executor model (issue 7, revised for issue 6): the plan service and ``/joint_states`` are each
+served by a thread of their own, the parameter services by a MultiThreadedExecutor (4 threads).
+Each own thread waits on its entity alone (their callback group is never run by the executor).
+The plan thread takes one request at a time and answers it before taking the next, so plans are
+computed one at a time in request order, and each successful plan is published exactly once, by
+the request that computed it, before its response is sent. The state thread takes every
+``/joint_states`` message as it arrives, and the parameter services run on the executor, so state
+and parameter updates never wait behind a plan. (rclpy's Python executor rebuilds its wait set
+and hands each callback to a pool thread: a few ms per plan request, and at 250 Hz of
+``/joint_states`` it halved the plan throughput; the own threads skip both.) Shared state is
+swapped atomically: the latest joint vector is an immutable tuple, and the configuration (robot,
+planner, limits) is an immutable :class:`PlannerConfig` that a request reads once at its start; a
+parameter change builds a new one (or rejects it with a reason) under a lock.
 
 Bounded time: each plan runs in a worker thread and the service waits at most ``plan_timeout`` s
 for it. A plan still computing then is abandoned: the request fails, and a lock shared by
@@ -74,7 +75,7 @@ from rclpy._rclpy_pybind11 import RCLError
 from nav_msgs.msg import Path
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.callback_groups import CallbackGroup, MutuallyExclusiveCallbackGroup
+from rclpy.callback_groups import CallbackGroup
 from rclpy.exceptions import InvalidHandle, ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -464,7 +465,7 @@ class GeodesicPlannerNode(Node):
         self._unmatched_graph_count: int | None = None
 
         self._plan_group = _OwnThreadGroup()
-        self._state_group = MutuallyExclusiveCallbackGroup()
+        self._state_group = _OwnThreadGroup()
         self.trajectory_pub = self.create_publisher(
             JointTrajectory, '~/joint_trajectory',
             QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
@@ -487,10 +488,12 @@ class GeodesicPlannerNode(Node):
                                    reliability=ReliabilityPolicy.RELIABLE,
                                    durability=DurabilityPolicy.VOLATILE),
             callback_group=self._plan_group)
-        self._plan_stop = threading.Event()
-        self._plan_thread = threading.Thread(target=self._serve_plans, name='plan_service',
-                                             daemon=True)
-        self._plan_thread.start()
+        self._stop_threads = threading.Event()
+        self._threads = [
+            threading.Thread(target=self._serve_plans, name='plan_service', daemon=True),
+            threading.Thread(target=self._serve_joint_states, name='joint_states', daemon=True)]
+        for thread in self._threads:
+            thread.start()
         c = self._config
         service = self.resolve_service_name('~/plan')
         self.get_logger().info(
@@ -582,42 +585,77 @@ class GeodesicPlannerNode(Node):
         else:
             self.get_logger().info(f'waited {waited_ms:.1f} ms for {graph} subscriptions to match')
 
-    def _serve_plans(self) -> None:
-        """Plan thread: wait on ``~/plan`` alone, answer one request at a time, in order."""
-        srv = self.plan_srv
-        wait_set = _rclpy.WaitSet(0, 0, 0, 0, 1, 0, self.context.handle)
-        while not self._plan_stop.is_set():
+    def _wait_alone(self, entity: Any, kind: str,
+                    take: Callable[[], Callable[[], None] | None]) -> None:
+        """Own-thread loop: wait on ``entity`` alone (0.1 s at a time, until stopped) and call
+        ``take()`` (inside the entity's handle) whenever it is ready.
+
+        Args:
+            entity: the service or subscription.
+            kind: 'service' or 'subscription'.
+            take: takes what is ready; may return a follow-up to run outside the handles (a
+                plan, which must not keep the service or the context from being destroyed).
+        """
+        counts = (1, 0, 0, 0, 0) if kind == 'subscription' else (0, 0, 0, 0, 1)
+        wait_set = _rclpy.WaitSet(*counts, 0, self.context.handle)
+        add = wait_set.add_subscription if kind == 'subscription' else wait_set.add_service
+        while not self._stop_threads.is_set():
             try:
-                with self.context.handle, srv.handle:
+                with self.context.handle, entity.handle:
                     wait_set.clear_entities()
-                    wait_set.add_service(srv.handle)
-                    wait_set.wait(100_000_000)        # 0.1 s: the stop flag is checked between waits
-                    if srv.handle.pointer not in wait_set.get_ready_entities('service'):
-                        continue
-                    request, header = srv.handle.service_take_request(GetPlan.Request)
-            except (InvalidHandle, RCLError):         # the service or the context is gone
-                return
-            if header is None:
-                continue
-            try:
-                response = self._on_plan(request, GetPlan.Response())
-            except Exception as err:  # noqa: BLE001 - boundary: the plan thread keeps serving
-                self.get_logger().error(f'internal error: {type(err).__name__}: {err}')
-                response = GetPlan.Response()
-            try:
-                srv.send_response(response, header)
-            except (InvalidHandle, RCLError):
+                    add(entity.handle)
+                    wait_set.wait(100_000_000)      # 0.1 s: the stop flag is checked between waits
+                    follow_up = None
+                    if entity.handle.pointer in wait_set.get_ready_entities(kind):
+                        follow_up = take()
+                if follow_up is not None:
+                    follow_up()
+            except (InvalidHandle, RCLError):       # the entity or the context is gone
                 return
 
-    def stop_plan_service(self, timeout: float = 2.0) -> None:
-        """Stop the plan thread (a request in progress gets up to ``timeout`` s to be answered)."""
-        self._plan_stop.set()
-        if self._plan_thread.is_alive() and self._plan_thread is not threading.current_thread():
-            self._plan_thread.join(timeout)
+    def _serve_joint_states(self) -> None:
+        """State thread: handle every ``/joint_states`` message as it arrives."""
+        sub = self.joint_state_sub
+
+        def take() -> Callable[[], None] | None:
+            while (taken := sub.handle.take_message(JointState, False)) is not None:
+                self._on_joint_state(taken[0])
+            return None
+
+        self._wait_alone(sub, 'subscription', take)
+
+    def _serve_plans(self) -> None:
+        """Plan thread: answer ``~/plan`` requests one at a time, in order."""
+        srv = self.plan_srv
+
+        def take() -> Callable[[], None] | None:
+            request, header = srv.handle.service_take_request(GetPlan.Request)
+            if header is None:
+                return None
+
+            def answer() -> None:
+                try:
+                    response = self._on_plan(request, GetPlan.Response())
+                except Exception as err:  # noqa: BLE001 - boundary: the plan thread keeps serving
+                    _log(self.get_logger(), LoggingSeverity.ERROR,
+                         f'internal error: {type(err).__name__}: {err}')
+                    response = GetPlan.Response()
+                srv.send_response(response, header)
+            return answer
+
+        self._wait_alone(srv, 'service', take)
+
+    def stop_threads(self, timeout: float = 2.0) -> None:
+        """Stop the plan and state threads (a request in progress gets up to ``timeout`` s)."""
+        self._stop_threads.set()
+        deadline = time.monotonic() + timeout
+        for thread in self._threads:
+            if thread.is_alive() and thread is not threading.current_thread():
+                thread.join(max(0.0, deadline - time.monotonic()))
 
     def destroy_node(self) -> Any:
-        """Stop the plan thread, then destroy the node's entities."""
-        self.stop_plan_service()
+        """Stop the own threads, then destroy the node's entities."""
+        self.stop_threads()
         return super().destroy_node()
 
     def _on_plan(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
