@@ -343,8 +343,8 @@ def _backward_closed(A: np.ndarray, B: np.ndarray, static: np.ndarray
     closed form: with ``L_k = sum_{i<k} log a_i`` and ``E_i = e^{L_i} b_i``,
     ``h_k = e^{-L_k} min_{m >= k} (e^{L_m} static_m + sum_{i=k}^{m-1} E_i)`` (static_n = 0); the
     partial sums are differences of prefix sums, or of suffix sums, whichever cancels less. Starting
-    from the rows lowest at h = 0, it is solved again with the rows lowest at the previous
-    solution. It is accepted when every step satisfies the recursion over all rows to
+    from the rows lowest at the solution for a = 1 (a cumulative minimum), it is solved again with
+    the rows lowest at the previous solution. It is accepted when every step satisfies the recursion over all rows to
     ``_CLOSED_FORM_RTOL`` (exactly where it is zero: the rests); otherwise None, and the rows serve
     as guesses for the loop.
     """
@@ -357,7 +357,6 @@ def _backward_closed(A: np.ndarray, B: np.ndarray, static: np.ndarray
         np.cumsum(B.min(axis=1), out=C[1:])
         h0 = np.minimum.accumulate((st + C)[::-1])[::-1] - C
         g = first = np.argmin(A * h0[1:, None] + B, axis=1)
-    with np.errstate(all='ignore'):
         for _ in range(_GUESS_ITERATIONS):
             L = np.zeros(n + 1)
             np.cumsum(np.log(A[steps, g]), out=L[1:])
@@ -386,8 +385,9 @@ def _forward_closed(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.
     With one row per step, ``x_{k+1} = min(hi_{k+1}, p_k x_k + q_k)`` (p = 1 + 2 h alpha,
     q = 2 h d) has a closed form for p > 0: with ``L_j = sum_{i<j} log p_i`` and
     ``E_i = e^{-L_{i+1}} q_i``, ``x_j = e^{L_j} min_{m <= j} (e^{-L_m} hi_m + sum_{i=m}^{j-1} E_i)``
-    (hi_0 = 0). Starting from the rows lowest at x = hi; accepted when every step matches the
-    exact update over all rows to ``_CLOSED_FORM_RTOL``.
+    (hi_0 = 0). Starting from the rows lowest at the solution for p = 1 and the rows lowest at
+    x = 0; accepted when every step matches the exact update over all rows to
+    ``_CLOSED_FORM_RTOL``.
     """
     n = two_h.size
     steps = np.arange(n)
@@ -400,7 +400,6 @@ def _forward_closed(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.
         np.cumsum(two_h * d.min(axis=1), out=C[1:])
         x_1 = C + np.minimum.accumulate(top - C)
         g = first = np.argmin(alpha * x_1[:-1, None] + d, axis=1)
-    with np.errstate(all='ignore'):
         for _ in range(_GUESS_ITERATIONS):
             L = np.zeros(n + 1)
             np.cumsum(np.log(np.maximum(1.0 + two_h * alpha[steps, g], 1e-6)), out=L[1:])
@@ -424,14 +423,14 @@ def _forward_closed(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.
 
 
 def _backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> np.ndarray:
-    """hi_k = min(static_k, min_j A_kj hi_{k+1} + B_kj) for k = n-1 .. 0, hi_n = 0; (n + 1) floats.
+    """hi_k = min(static_k, min_j A_kj hi_{k+1} + B_kj) for k = n-1 .. 0, hi_n = 0; (n + 1,).
 
-    The recursion is sequential, so it runs on plain floats, over two guessed rows per step; the
-    result is then checked against all rows at once. A step where the recursion holds with all
-    rows, after steps that all hold, has exactly the value a loop over all rows gives (the same
-    floating-point operations), so the loop resumes at the first step that fails, with the row
-    lowest there (and the previous guess) as the guesses. After a few rounds the remaining steps use
-    every row.
+    First in closed form (:func:`_backward_closed`, accepted to a relative 1e-12 per step).
+    Otherwise the recursion runs on plain floats over two guessed rows per step, and the result
+    is checked against all rows at once: a step where the recursion holds with all rows, after
+    steps that all hold, has exactly the value a loop over all rows gives (the same floating-point
+    operations), so the loop resumes at the first step that fails, with the row lowest there (and
+    the previous guess) as the guesses. After a few rounds the remaining steps use every row.
     """
     n = static.size
     st = static.tolist()
@@ -464,10 +463,11 @@ def _backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> np.ndarr
 
 
 def _forward_pass(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi_np: np.ndarray) -> np.ndarray:
-    """Greedy forward pass x_{k+1} = clip(x_k + 2 h_k u_k, 0, hi_{k+1}), x_0 = 0; (n + 1) floats.
+    """Greedy forward pass x_{k+1} = clip(x_k + 2 h_k u_k, 0, hi_{k+1}), x_0 = 0; (n + 1,).
 
-    ``u_k = min((hi_{k+1} - x_k) / (2 h_k), min_j alpha_kj x_k + d_kj)``; guessed rows checked
-    against all rows, as in :func:`_backward_pass`.
+    ``u_k = min((hi_{k+1} - x_k) / (2 h_k), min_j alpha_kj x_k + d_kj)``; closed form first
+    (:func:`_forward_closed`), else guessed rows checked against all rows, as in
+    :func:`_backward_pass`.
     """
     n = two_h.size
     hi1 = hi_np[1:]
