@@ -11,6 +11,9 @@ Starts the real node (console script ``geodesic_planner_node``) per robot, then 
    until its response: no polling); plans per second, and CPU time per plan of the node process
    (all threads, from /proc) and of this process.
 
+``--joint-states-hz 250`` also publishes ``/joint_states`` during the run, as a robot driver
+does (the node validates every message).
+
 Fair measurement: this process runs the subscriber and the 4 clients on a helper node without
 parameter services or rosout, spun by a SingleThreadedExecutor. With rclpy's
 MultiThreadedExecutor (as before issue 6 was worked on) the benchmark itself used 8-9 ms CPU per
@@ -18,7 +21,7 @@ plan on the 2 cores it shares with the node and added 5-7 ms to the measured lat
 
 Run inside the loopback-only network namespace (ROS must not leave the machine)::
 
-    bash scripts/netns.sh .venv/bin/python benchmarks/node_latency.py [--requests 100] [--robots planar_3r ur5e]
+    bash scripts/netns.sh .venv/bin/python benchmarks/node_latency.py [--requests 100] [--robots planar_3r ur5e] [--joint-states-hz 250]
 
 Prints a table. Not a test: nothing is asserted (issue 6 targets: ur5e median <= 15 ms, >= 50
 plans/s with 4 clients).
@@ -152,8 +155,31 @@ def stop_node(proc: subprocess.Popen) -> int:
     return proc.returncode
 
 
+def publish_joint_states(node: Any, robot: str, rate_hz: float, stop: threading.Event) -> threading.Thread:
+    """Publish the robot's home state on /joint_states at ``rate_hz`` from a thread (like a
+    driver) until ``stop`` is set."""
+    from sensor_msgs.msg import JointState
+
+    pub = node.create_publisher(JointState, '/joint_states', 10)
+    model = load_robot(robot)
+    msg = cv.vector_to_joint_state(model.joint_names, model.home)
+
+    def run() -> None:
+        period = 1.0 / rate_hz
+        next_t = time.monotonic()
+        while not stop.is_set():
+            pub.publish(msg)
+            next_t += period
+            stop.wait(max(0.0, next_t - time.monotonic()))
+        node.destroy_publisher(pub)
+
+    thread = threading.Thread(target=run, name='joint_states', daemon=True)
+    thread.start()
+    return thread
+
+
 def measure(bench: Bench, robot: str, n_requests: int, warmup: int, per_client: int,
-            log_dir: Path) -> Result:
+            log_dir: Path, joint_states_hz: float = 0.0) -> Result:
     from nav_msgs.srv import GetPlan
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from trajectory_msgs.msg import JointTrajectory
@@ -175,6 +201,9 @@ def measure(bench: Bench, robot: str, n_requests: int, warmup: int, per_client: 
     sub = node.create_subscription(JointTrajectory, f'{ns}/geodesic_planner/joint_trajectory',
                                    on_traj, QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
     clients = [node.create_client(GetPlan, f'{ns}/geodesic_planner/plan') for _ in range(4)]
+    js_stop = threading.Event()
+    js_thread = (publish_joint_states(node, robot, joint_states_hz, js_stop)
+                 if joint_states_hz > 0 else None)
     try:
         for c in clients:
             if not c.wait_for_service(timeout_sec=DEADLINE):
@@ -256,6 +285,9 @@ def measure(bench: Bench, robot: str, n_requests: int, warmup: int, per_client: 
         bench_cpu = (time.process_time() - cpu0[1]) * 1e3 / len(load)
         rate = expected / (t_end - t0)
     finally:
+        js_stop.set()
+        if js_thread is not None:
+            js_thread.join(5.0)
         for c in clients:
             node.destroy_client(c)
         node.destroy_subscription(sub)
@@ -301,6 +333,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--warmup', type=int, default=5)
     parser.add_argument('--per-client', type=int, default=25, help='requests per client (4 clients)')
     parser.add_argument('--robots', nargs='+', default=['planar_3r', 'ur5e'])
+    parser.add_argument('--joint-states-hz', type=float, default=0.0,
+                        help='also publish /joint_states at this rate during the run, as a robot '
+                             'driver does (e.g. 250); default: none')
     parser.add_argument('--log-dir', type=Path, default=None,
                         help='keep the node logs (<robot>.log) in this directory')
     args = parser.parse_args(argv)
@@ -317,7 +352,7 @@ def main(argv: list[str] | None = None) -> int:
             log_dir.mkdir(parents=True, exist_ok=True)
             for robot in args.robots:
                 results.append(measure(bench, robot, args.requests, args.warmup, args.per_client,
-                                       log_dir))
+                                       log_dir, args.joint_states_hz))
     finally:
         bench.close()
     stages = {robot: breakdown(robot, min(args.requests, 30)) for robot in args.robots}
@@ -325,7 +360,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f'# planner node latency ({platform.processor() or platform.machine()}, '
           f'{os.cpu_count()} cores, Python {platform.python_version()}, load average '
           f'{load[0]:.1f} / {load[1]:.1f}; {args.requests} sequential requests after '
-          f'{args.warmup} warm-up)')
+          f'{args.warmup} warm-up; /joint_states at {args.joint_states_hz:g} Hz)')
     print('| robot | points | request->trajectory p50 / p90 / max (ms) | of which node compute p50 '
           '| ROS overhead p50 / p90 (ms) | request->response p50 / p90 (ms) '
           '| 4 clients: plans/s (requests, failures) | CPU per plan under load: node / benchmark (ms) |')
