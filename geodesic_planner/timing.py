@@ -255,26 +255,26 @@ def _sample_path(path: Any, grid_points: int) -> _PathSamples:
     return _PathSamples(nodes, aL, aR, bL, bR, cL, cR, stop)
 
 
-def _interpolation_suspects(s: np.ndarray, D: np.ndarray, dof: int, tol: float) -> np.ndarray:
+def _interpolation_suspects(h: np.ndarray, left: np.ndarray, right: np.ndarray, scale: np.ndarray,
+                            dof: int, tol: float) -> np.ndarray:
     """Steps whose cubic-Hermite interpolation of q' or q'' is not trustworthy, (n,) bool.
 
-    ``D`` (n+1, 6 dof) holds the node data side by side: q', q'', q''' from the left, then from
-    the right. On each step two independent mid-point estimates are compared: q'(mid) from the
-    Hermite of q' (slopes q'') and from integrating the Hermite of q'' (slopes q'''); q''(mid) from
-    the Hermite of q'' and from integrating q''' interpolated linearly. For a smooth path they agree
-    to O(h^4 q^(5)) and O(h^3 q^(5)); a disagreement above ``tol`` times the joint's scale flags the
-    step. Nothing is divided by h, so slightly inconsistent derivative data (a collocation
-    solution) does not make the indicator grow under refinement.
+    Steps of lengths ``h`` (n, 1) between nodes with data ``left`` and ``right`` (n, 6 dof): q',
+    q'', q''' from the left, then from the right, side by side; ``scale`` (3, dof): the largest
+    |q'|, |q''|, |q'''| over all nodes. On each step two independent mid-point estimates are
+    compared: q'(mid) from the Hermite of q' (slopes q'') and from integrating the Hermite of q''
+    (slopes q'''); q''(mid) from the Hermite of q'' and from integrating q''' interpolated linearly.
+    For a smooth path they agree to O(h^4 q^(5)) and O(h^3 q^(5)); a disagreement above ``tol``
+    times the joint's scale flags the step. Nothing is divided by h, so slightly inconsistent
+    derivative data (a collocation solution) does not make the indicator grow under refinement.
     """
-    h = np.diff(s)[:, None]
     d2 = 2 * dof
     # (q', q'') and their slopes (q'', q''') at both ends of each step: the Hermite mid-points.
-    mid_1 = 0.5 * (D[:-1, 3 * dof:3 * dof + d2] + D[1:, :d2]) + h * (D[:-1, 4 * dof:] - D[1:, dof:dof + d2]) / 8.0
-    a0, b0, c0 = D[:-1, 3 * dof:4 * dof], D[:-1, 4 * dof:5 * dof], D[:-1, 5 * dof:]
-    b1, c1 = D[1:, dof:2 * dof], D[1:, 2 * dof:3 * dof]
+    mid_1 = 0.5 * (left[:, 3 * dof:3 * dof + d2] + right[:, :d2]) + h * (left[:, 4 * dof:] - right[:, dof:dof + d2]) / 8.0
+    a0, b0, c0 = left[:, 3 * dof:4 * dof], left[:, 4 * dof:5 * dof], left[:, 5 * dof:]
+    b1, c1 = right[:, dof:2 * dof], right[:, 2 * dof:3 * dof]
     a_mid_2 = a0 + h * (13.0 / 32.0 * b0 + 11.0 / 192.0 * h * c0 + 3.0 / 32.0 * b1 - 5.0 / 192.0 * h * c1)
     b_mid_2 = b0 + h * (3.0 * c0 + c1) / 8.0
-    scale = np.abs(D).max(axis=0).reshape(2, 3, dof).max(axis=0)
     tiny = 1e-300
     limit = tol * (np.concatenate([scale[0], scale[1] + scale[0]]) + tiny)
     return (np.abs(mid_1 - np.concatenate([a_mid_2, b_mid_2], axis=1)) > limit).any(axis=1)
@@ -282,33 +282,48 @@ def _interpolation_suspects(s: np.ndarray, D: np.ndarray, dof: int, tol: float) 
 
 def _refine_adaptively(path: Any, ps: _PathSamples, tol: float = 1e-5, max_rounds: int = 12,
                        max_nodes: int = 2000) -> _PathSamples:
-    """Bisect the steps where interpolation is not trustworthy, with exact path evaluations."""
-    s, stop = ps.s, ps.stop
+    """Bisect the steps where interpolation is not trustworthy, with exact path evaluations.
+
+    Each round checks only the steps made by the previous round's bisections: the scale of the
+    test only grows as nodes are added, so a step that passed once passes again.
+    """
     dof = ps.aR.shape[1]
     D = np.hstack([ps.aL, ps.bL, ps.cL, ps.aR, ps.bR, ps.cR])
-    refined = False
+    scale = np.abs(D).max(axis=0).reshape(2, 3, dof).max(axis=0)
+    # The steps to check: their ends (s and node data).
+    s_l, s_r, d_l, d_r = ps.s[:-1], ps.s[1:], D[:-1], D[1:]
+    count = ps.s.size
+    new_s, new_d = [], []
     for _ in range(max_rounds):
-        bad = _interpolation_suspects(s, D, dof, tol)
-        bad &= np.diff(s) > 1e-7
-        if not np.any(bad) or s.size >= max_nodes:
+        h = s_r - s_l
+        bad = _interpolation_suspects(h[:, None], d_l, d_r, scale, dof, tol)
+        bad &= h > 1e-7
+        if not np.any(bad) or count >= max_nodes:
             break
-        idx = np.flatnonzero(bad)[: max_nodes - s.size]
-        s_new = 0.5 * (s[idx] + s[idx + 1])
+        idx = np.flatnonzero(bad)[: max_nodes - count]
+        s_new = 0.5 * (s_l[idx] + s_r[idx])
         _, a, b, c = (np.asarray(v, dtype=float) for v in path.evaluate(s_new))
         new = np.hstack([a, b, c, a, b, c])
         if not np.all(np.isfinite(new)):
             raise LimitError('path derivatives contain NaN or inf')
-        # Insert the new (non-breakpoint) nodes in order of s.
-        s_all = np.concatenate([s, s_new])
-        order = np.argsort(s_all, kind='stable')
-        s = s_all[order]
-        D = np.concatenate([D, new])[order]
-        stop = np.concatenate([stop, np.zeros(s_new.size, dtype=bool)])[order]
-        refined = True
-    if not refined:
+        new_s.append(s_new)
+        new_d.append(new)
+        count += s_new.size
+        scale = np.maximum(scale, np.abs(new).max(axis=0).reshape(2, 3, dof).max(axis=0))
+        # The halves of each bisected step, in order of s.
+        s_l = np.stack([s_l[idx], s_new], axis=1).reshape(-1)
+        s_r = np.stack([s_new, s_r[idx]], axis=1).reshape(-1)
+        d_l, d_r = (np.stack([d_l[idx], new], axis=1).reshape(-1, D.shape[1]),
+                    np.stack([new, d_r[idx]], axis=1).reshape(-1, D.shape[1]))
+    if not new_s:
         return ps
+    # Insert the new (non-breakpoint) nodes in order of s.
+    s_all = np.concatenate([ps.s] + new_s)
+    order = np.argsort(s_all, kind='stable')
+    D = np.concatenate([D] + new_d)[order]
+    stop = np.concatenate([ps.stop, np.zeros(count - ps.s.size, dtype=bool)])[order]
     aL, bL, cL, aR, bR, cR = (np.ascontiguousarray(D[:, i * dof:(i + 1) * dof]) for i in range(6))
-    return _PathSamples(s, aL, aR, bL, bR, cL, cR, stop)
+    return _PathSamples(s_all[order], aL, aR, bL, bR, cL, cR, stop)
 
 
 #: Rounds of the row-guessing passes of _topp before the remaining steps use all rows.
