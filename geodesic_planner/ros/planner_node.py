@@ -612,6 +612,10 @@ class GeodesicPlannerNode(Node):
                     follow_up()
             except (InvalidHandle, RCLError):       # the entity or the context is gone
                 return
+            except Exception as err:  # noqa: BLE001 - boundary: the thread keeps serving
+                _log(self.get_logger(), LoggingSeverity.ERROR,
+                     f'internal error in {threading.current_thread().name}: '
+                     f'{type(err).__name__}: {err}')
 
     def _serve_joint_states(self) -> None:
         """State thread: handle every ``/joint_states`` message as it arrives."""
@@ -640,7 +644,11 @@ class GeodesicPlannerNode(Node):
                     _log(self.get_logger(), LoggingSeverity.ERROR,
                          f'internal error: {type(err).__name__}: {err}')
                     response = GetPlan.Response()
-                srv.send_response(response, header)
+                try:
+                    srv.send_response(response, header)
+                except RCLError as err:   # e.g. the client is gone; keep serving the others
+                    _log(self.get_logger(), LoggingSeverity.ERROR,
+                         f'could not send the plan response: {err}')
             return answer
 
         self._wait_alone(srv, 'service', take)
