@@ -326,6 +326,11 @@ def _refine_adaptively(path: Any, ps: _PathSamples, tol: float = 1e-5, max_round
     return _PathSamples(s_all[order], aL, aR, bL, bR, cL, cR, stop)
 
 
+def _row_min(values: np.ndarray) -> np.ndarray:
+    """values.min(axis=1) for (n, m) arrays with few columns (numpy's argmin is much faster there)."""
+    return values[np.arange(values.shape[0]), np.argmin(values, axis=1)]
+
+
 #: Rounds of the row-guessing passes of _topp before the remaining steps use all rows.
 _PASS_ROUNDS = 6
 
@@ -369,7 +374,7 @@ def _backward_closed(A: np.ndarray, B: np.ndarray, static: np.ndarray
     with np.errstate(all='ignore'):
         # First guess: the rows lowest at the solution for a_k = 1 and the rows lowest at h = 0.
         C = np.zeros(n + 1)
-        np.cumsum(B.min(axis=1), out=C[1:])
+        np.cumsum(_row_min(B), out=C[1:])
         h0 = np.minimum.accumulate((st + C)[::-1])[::-1] - C
         g = first = np.argmin(A * h0[1:, None] + B, axis=1)
         for _ in range(_GUESS_ITERATIONS):
@@ -412,7 +417,7 @@ def _forward_closed(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.
     with np.errstate(all='ignore'):
         # First guess: the rows lowest at the solution for p_k = 1 and the rows lowest at x = 0.
         C = np.zeros(n + 1)
-        np.cumsum(two_h * d.min(axis=1), out=C[1:])
+        np.cumsum(two_h * _row_min(d), out=C[1:])
         x_1 = C + np.minimum.accumulate(top - C)
         g = first = np.argmin(alpha * x_1[:-1, None] + d, axis=1)
         for _ in range(_GUESS_ITERATIONS):
@@ -553,16 +558,16 @@ def _topp(ps: _PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
         absa = np.abs(ra)
         moving = absa > 1e-12 * max(float(absa.max()), 1e-300)
         if mov_v.all() and moving.all():  # the usual case: no masking needed (same values)
-            xv = ((vmax / absa_n) ** 2).min(axis=1)
+            xv = _row_min((vmax / absa_n) ** 2)
             alpha = -rb / ra
             d = rl / absa
             c = -d
             xz = xv[:-1]  # no row with ra = 0: a neutral bound
         else:
-            xv = np.where(mov_v, (vmax / np.where(mov_v, absa_n, 1.0)) ** 2, np.inf).min(axis=1)
+            xv = _row_min(np.where(mov_v, (vmax / np.where(mov_v, absa_n, 1.0)) ** 2, np.inf))
             absb = np.abs(rb)
             # Rows with ra = 0: |rb| x <= rl.
-            xz = np.where(~moving & (absb > 0), rl / np.where(absb > 0, absb, 1.0), np.inf).min(axis=1)
+            xz = _row_min(np.where(~moving & (absb > 0), rl / np.where(absb > 0, absb, 1.0), np.inf))
             # Bounds on u: alpha x + c <= u <= alpha x + d.
             alpha = np.where(moving, -rb / np.where(moving, ra, 1.0), 0.0)
             c = np.where(moving, -rl / np.where(moving, absa, 1.0), -np.inf)
@@ -575,7 +580,7 @@ def _topp(ps: _PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
         # Lower bound u >= -x / (2 h) (x_{k+1} >= 0) against the upper bounds.
         coef = -1.0 / (2.0 * dl) - alpha
         lo_ok = moving & (coef > 0)
-        xl = np.where(lo_ok, d / np.where(lo_ok, coef, 1.0), np.inf).min(axis=1)
+        xl = _row_min(np.where(lo_ok, d / np.where(lo_ok, coef, 1.0), np.inf))
         static = np.minimum(np.minimum(np.minimum(xv[:-1], xz), np.minimum(xp, xl)), _X_CAP)
         # Dynamic bound: alpha_j x + c_j <= (hi_{k+1} - x) / (2 h)
         #   <=> x (1 + 2 h alpha_j) <= hi_{k+1} - 2 h c_j.
