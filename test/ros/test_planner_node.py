@@ -422,6 +422,42 @@ def test_plan_timeout_fails_request_and_publishes_nothing(planar: PlannerUnderTe
     check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
 
 
+def test_state_and_parameters_served_during_a_long_plan(planar: PlannerUnderTest, helper: Any,
+                                                        rosout: Collector) -> None:
+    """A plan with ~60000 points takes on the order of a second; a parameter change and a
+    /joint_states message sent after it are handled before its response (they never wait
+    behind a plan), and the plan still succeeds and is published once."""
+    n0 = len(planar.traj)
+    assert len(planar.plan(paper_request()).plan.poses) > 0
+    last = planar.wait_trajectories(n0 + 1)[-1].points[-1].time_from_start
+    duration = last.sec + last.nanosec * 1e-9
+    pub = helper.create_publisher(JointState, '/joint_states', 10)
+    try:
+        wait_for_subscribers(pub, 1, DEADLINE, watch=planar.watch)
+        assert all(r.successful for r in planar.set_parameters(
+            sample_period=duration / 60000, plan_timeout=DEADLINE))
+        n1, k0 = len(planar.traj), len(rosout)
+        future = planar.plan_client.call_async(paper_request())
+        results = planar.set_parameters(velocity_scaling=1.0)
+        assert all(r.successful for r in results)
+        assert not future.done(), 'the parameter change waited for the plan'
+
+        def published_and_warned() -> Any:
+            pub.publish(_joint_state(['joint1', 'joint2', 'bogus'], [1.0, 1.0, 1.0]))
+            return next((m for m in rosout_since(rosout, k0, planar.logger, WARN)
+                         if 'missing robot joints' in m.msg), None)
+        wait_until(published_and_warned, DEADLINE, what='joint state warning', watch=planar.watch)
+        assert not future.done(), 'the joint state waited for the plan'
+        wait_until(future.done, DEADLINE, what='the long plan', watch=planar.watch)
+        assert len(future.result().plan.poses) > 50000
+        msgs = planar.wait_trajectories(n1 + 1)
+        assert len(msgs) == n1 + 1 and len(msgs[-1].points) > 50000
+    finally:
+        helper.destroy_publisher(pub)
+        assert all(r.successful for r in planar.set_parameters(sample_period=0.01,
+                                                                plan_timeout=5.0))
+
+
 def _rss_mb(pid: int) -> float:
     for line in FsPath(f'/proc/{pid}/status').read_text().splitlines():
         if line.startswith('VmRSS:'):
