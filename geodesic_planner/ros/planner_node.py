@@ -610,12 +610,15 @@ class GeodesicPlannerNode(Node):
                         follow_up = take()
                 if follow_up is not None:
                     follow_up()
-            except (InvalidHandle, RCLError):       # the entity or the context is gone
+            except InvalidHandle:                   # the entity is gone
                 return
             except Exception as err:  # noqa: BLE001 - boundary: the thread keeps serving
+                if not self.context.ok():           # shutting down
+                    return
                 _log(self.get_logger(), LoggingSeverity.ERROR,
                      f'internal error in {threading.current_thread().name}: '
                      f'{type(err).__name__}: {err}')
+                self._stop_threads.wait(0.1)        # no busy loop if the error repeats
 
     def _serve_joint_states(self) -> None:
         """State thread: handle every ``/joint_states`` message as it arrives."""
