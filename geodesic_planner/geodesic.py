@@ -95,6 +95,50 @@ class GeodesicEquations:
             self._acc_cache[key] = hit
         return hit.copy()
 
+    def jerk(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Geodesic acceleration q'' and its s-derivative q''' at (q, q'), without full Jacobians.
+
+        Differentiating ``G a + Jᵀ Ω H = 0`` along the path gives
+        ``G q‴ = −(⟨D_k, f''⟩_Ω + ⟨Y_k, 3 Σ_j D_j a_j + T₃⟩_Ω)`` with ``Y_k = ∂T/∂q_k``,
+        ``D_k = Σ_j ∂²T/∂q_j∂q_k v_j``, ``f'' = Σ_k Y_k a_k + H`` and ``T₃`` the third derivative
+        of the pose along v (Taylor coefficients of the product of joint exponentials). The same
+        value as ``∂a/∂q q' + ∂a/∂q' q''`` from :meth:`evaluate`, at a fraction of its cost.
+
+        Args:
+            q, v: joint positions and velocities w.r.t. s, shape (N, dof).
+        Returns:
+            (a, dddq): q'' and q''' w.r.t. s, each (N, dof).
+        Raises:
+            SingularMetricError: G is singular at one of the configurations.
+        """
+        q = np.ascontiguousarray(q, dtype=float)
+        X, T = self._generators(q)
+        Tn = T[:, None]
+        Y = X @ Tn
+        YO = Y * self._mask
+        G = np.einsum('nixy,njxy->nij', YO, Y) + self._eps_eye
+        W = X * v[..., None, None]
+        # Taylor coefficients c1, c2, c3 of e^{W_1 t} ... e^{W_n t} (pose derivatives d! c_d T).
+        c1 = np.zeros(T.shape)
+        c2 = np.zeros(T.shape)
+        c3 = np.zeros(T.shape)
+        for k in range(self.robot.dof):
+            Wk = W[:, k]
+            Wk2 = Wk @ Wk
+            c3 = c3 + c2 @ Wk + c1 @ Wk2 / 2.0 + Wk2 @ Wk / 6.0
+            c2 = c2 + c1 @ Wk + Wk2 / 2.0
+            c1 = c1 + Wk
+        H = 2.0 * c2 @ T
+        T3 = 6.0 * c3 @ T
+        a = self._solve(G, -np.einsum('nixy,nxy->ni', YO, H)[..., None], q)[..., 0]
+        C = np.cumsum(W, axis=1)
+        D = (C @ X + X @ (C[:, -1:] - C)) @ Tn
+        Da = np.einsum('nkxy,nk->nxy', D, a)
+        R4 = np.einsum('nkxy,nk->nxy', Y, a) + H
+        rhs = (np.einsum('nkxy,nxy->nk', D, R4 * self._mask)
+               + np.einsum('nkxy,nxy->nk', YO, 3.0 * Da + T3))
+        return a, self._solve(G, -rhs[..., None], q)[..., 0]
+
     def evaluate(self, q: np.ndarray, v: np.ndarray, jacobians: bool = True
                  ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """Acceleration and (optionally) its Jacobians.
@@ -347,8 +391,7 @@ class GeodesicPath(JointPath):
             return (q, dq)[:order + 1]
         if order == 2:
             return q, dq, self.equations.acceleration(q, dq)
-        a, da_dq, da_dv = self.equations.evaluate(q, dq)
-        dddq = np.einsum('nij,nj->ni', da_dq, dq) + np.einsum('nij,nj->ni', da_dv, a)
+        a, dddq = self.equations.jerk(q, dq)
         return q, dq, a, dddq
 
     def metric_speed(self, s: np.ndarray) -> np.ndarray:

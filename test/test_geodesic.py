@@ -94,6 +94,25 @@ def test_equation_jacobians_match_finite_differences(case):
     assert_allclose(eq.acceleration(qs, vs), a, atol=1e-14)
 
 
+@pytest.mark.parametrize('case', list(EQUATION_CASES))
+def test_jerk_is_the_derivative_of_the_acceleration_along_the_flow(case):
+    """jerk(): the third derivative equals ∂a/∂q q' + ∂a/∂q' q'' (the analytic Jacobians, checked
+    against finite differences above) and the central difference of a along the geodesic flow."""
+    make, metric = EQUATION_CASES[case]
+    robot = make()
+    eq = GeodesicEquations(robot, metric)
+    qs, vs = regular_samples(robot, metric, np.random.default_rng(23), 5)
+    a, da_dq, da_dv = eq.evaluate(qs, vs)
+    a2, j = eq.jerk(qs, vs)
+    assert_allclose(a2, a, rtol=1e-12, atol=1e-12 * np.abs(a).max())
+    ref = np.einsum('nij,nj->ni', da_dq, vs) + np.einsum('nij,nj->ni', da_dv, a)
+    assert_allclose(j, ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
+    h = 1e-5   # a along the flow: (q ± h v + h²/2 a, v ± h a), O(h²) accurate
+    fd = (eq.acceleration(qs + h * vs + 0.5 * h * h * a, vs + h * a)
+          - eq.acceleration(qs - h * vs + 0.5 * h * h * a, vs - h * a)) / (2 * h)
+    assert np.linalg.norm(j - fd) <= 1e-5 * max(np.linalg.norm(fd), 1.0)
+
+
 def christoffel_acceleration(robot, metric, q, v, h=1e-6):
     """a^i = −Γ^i_kj v^k v^j with Γ^i_kj = ½ g^im (∂_j g_km + ∂_k g_jm − ∂_m g_kj), ∂G by central
     differences of G (eq. 4)."""
