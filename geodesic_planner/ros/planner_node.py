@@ -188,6 +188,9 @@ class PlanResult:
     #: ms per stage: 'plan' (library), 'timing' (timed + sample), 'trajectory' (message and
     #: its validation), 'publish' (on_trajectory), 'tool path' (fk, Path and markers)
     stage_ms: dict[str, float]
+    #: SolverReport.method ('pullback' or 'collocation') and mesh size
+    solver_method: str = ''
+    mesh_size: int = 0
 
 
 # --------------------------------------------------------------------------- parameters
@@ -394,7 +397,8 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
               'trajectory': (t3 - t2) * 1e3, 'publish': (t4 - t3) * 1e3,
               'tool path': (t5 - t4) * 1e3}
     return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
-                      int(solver.iterations), float(solver.time_ms), stages)
+                      int(solver.iterations), float(solver.time_ms), stages,
+                      str(getattr(solver, 'method', '')), int(solver.mesh_size))
 
 
 # --------------------------------------------------------------------------- node
@@ -729,8 +733,9 @@ class GeodesicPlannerNode(Node):
         response.plan = result.path
         total_ms = (time.perf_counter() - t0) * 1e3
         _log(self.get_logger(), LoggingSeverity.INFO,
-             f'plan: {result.points} points, {result.duration:.2f} s, solver '
-             f'{result.solver_iterations} it, {result.solver_ms:.1f} ms (request {total_ms:.1f} ms: '
+             f'plan: {result.points} points, {result.duration:.2f} s, solver {result.solver_method} '
+             f'({result.solver_iterations} it, {result.mesh_size} nodes), {result.solver_ms:.1f} ms '
+             f'(request {total_ms:.1f} ms: '
              + ', '.join(f'{k} {v:.1f}' for k, v in result.stage_ms.items()) + ')')
         return response
 
