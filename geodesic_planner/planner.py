@@ -126,6 +126,7 @@ class GeodesicPlanner:
             raise RequestError(f'time_limit must be > 0 s or None, got {time_limit}')
         self.time_limit = time_limit
         self.check_limits = check_limits
+        self._line_memo: tuple[bytes, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     # ------------------------------------------------------------------ ends
     def _ik(self, T: np.ndarray, seed: np.ndarray | None, tolerance: float | None,
@@ -188,6 +189,20 @@ class GeodesicPlanner:
         return q_a, snap_same(q_a, q_b), ik_a, ik_b
 
     # ------------------------------------------------------------------ guess
+    def _task_line(self, q_a: np.ndarray, q_b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """End poses and the slerp's rotation vector (start frame, rad) of the task-space geodesic
+        between joints q_a and q_b; the last one is remembered (mesh refinement asks again)."""
+        key = q_a.tobytes() + q_b.tobytes()
+        memo = self._line_memo              # one tuple: atomic to read and replace across threads
+        if memo is not None and memo[0] == key:
+            return memo[1], memo[2], memo[3]
+        T_a, T_b = self.robot.fk(np.stack([q_a, q_b]))
+        w_body = so3_log(T_a[:3, :3].T @ T_b[:3, :3])
+        for arr in (T_a, T_b, w_body):
+            arr.setflags(write=False)
+        self._line_memo = (key, T_a, T_b, w_body)
+        return T_a, T_b, w_body
+
     def initial_guess(self, q_a: np.ndarray, q_b: np.ndarray, s: np.ndarray,
                       seeds: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
         """Initial q, q' at the mesh s: task-space line + slerp pulled back by batched IK.
@@ -204,8 +219,7 @@ class GeodesicPlanner:
             return q_lin, v_lin, True
         wp = self.metric.position_weight
         wo = self.metric.effective_orientation_weight
-        T_a, T_b = robot.fk(np.stack([q_a, q_b]))
-        w_body = so3_log(T_a[:3, :3].T @ T_b[:3, :3])
+        T_a, T_b, w_body = self._task_line(q_a, q_b)
         targets = line_slerp(T_a, T_b, s, w_body)
         seeds = q_lin.copy() if seeds is None else np.array(seeds, dtype=float)
         if robot.closed_form_ik is not None:
