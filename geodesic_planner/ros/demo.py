@@ -27,7 +27,6 @@ import argparse
 import json
 import math
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -158,11 +157,6 @@ class NodeProcess:
 
     def log_tail(self, lines: int = 30) -> str:
         return '\n'.join(self.log_text().splitlines()[-lines:])
-
-    def publisher_matched(self, topic: str) -> int:
-        """Most subscriptions the node's publisher on ``topic`` has logged as matched."""
-        counts = re.findall(rf'{re.escape(topic)}: (\d+) subscription\(s\) matched', self.log_text())
-        return max((int(c) for c in counts), default=0)
 
     def stop(self, timeout: float = 10.0) -> int:
         """SIGINT, then SIGTERM, then SIGKILL to the group, ``timeout`` s apart; the exit code."""
@@ -299,6 +293,7 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
     from trajectory_msgs.msg import JointTrajectory
 
     from .conversions import joint_trajectory_to_arrays, matrix_to_pose_stamped
+    from .matching import logged_matches
 
     nodes: list[NodeProcess] = []
     context = Context()
@@ -351,9 +346,9 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
         for topic, sub in subs.items():
             _wait(lambda s=sub: s.get_publisher_count() >= 1, timeout, f'a publisher on {topic}', nodes)
         # ... and the publishers must have matched us (the writer side can lag behind the reader).
-        _wait(lambda: planner.publisher_matched(PLANNED_TOPIC) >= 2, timeout,
+        _wait(lambda: logged_matches(planner.log_text(), PLANNED_TOPIC) >= 2, timeout,
               f"the planner's publisher on {PLANNED_TOPIC} matched with 2 subscriptions", nodes)
-        _wait(lambda: processor.publisher_matched(PROCESSED_TOPIC) >= 1, timeout,
+        _wait(lambda: logged_matches(processor.log_text(), PROCESSED_TOPIC) >= 1, timeout,
               f"the processor's publisher on {PROCESSED_TOPIC} matched with us", nodes)
         say(f'processor ready: subscribed to {PLANNED_TOPIC}, publishing {PROCESSED_TOPIC}')
 

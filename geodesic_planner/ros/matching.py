@@ -11,6 +11,7 @@ must receive the next message waits for the writer's own word: :func:`matched_lo
 """
 from __future__ import annotations
 
+import re
 import time
 
 from rclpy.event_handler import PublisherEventCallbacks
@@ -43,3 +44,10 @@ def matched_logger(node: Node, topic: str) -> PublisherEventCallbacks:
         if getattr(status, 'current_count_change', 0):
             node.get_logger().info(f'{topic}: {getattr(status, "current_count", 0)} subscription(s) matched')
     return PublisherEventCallbacks(matched=on_matched)
+
+
+def logged_matches(log_text: str, topic: str) -> int:
+    """Most subscriptions a node's log says its publisher on ``topic`` had matched (the lines of
+    :func:`matched_logger`; 0 if none): what a client waits for before triggering a publish."""
+    counts = re.findall(rf'{re.escape(topic)}: (\d+) subscription\(s\) matched', log_text)
+    return max((int(c) for c in counts), default=0)

@@ -285,9 +285,8 @@ def wait_writer_matched(process: NodeProcess, topic: str, n: int = 1, timeout: f
     and what it sends before that never reaches a volatile reader. Both nodes log
     ``<topic>: N subscription(s) matched`` from the writer's matched event.
     """
-    import re
-    pattern = re.compile(rf'{re.escape(topic)}: (\d+) subscription\(s\) matched')
-    wait_until(lambda: any(int(c) >= n for c in pattern.findall(process.log_text())), timeout,
+    from geodesic_planner.ros.matching import logged_matches
+    wait_until(lambda: logged_matches(process.log_text(), topic) >= n, timeout,
                what=f'{n} subscription(s) matched by the publisher on {topic}', watch=watch or [process])
 
 
