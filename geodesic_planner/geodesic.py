@@ -95,6 +95,27 @@ class GeodesicEquations:
             self._acc_cache[key] = hit
         return hit.copy()
 
+    def _terms(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Shared terms of the equations at (q, v), each batched over N configurations.
+
+        Returns:
+            (q, X, T, Y, YΩ, G, W, C): q as a contiguous float array; the spatial generators X
+            and tool pose T; ``Y_k = ∂T/∂q_k = X_k T`` and Y weighted by Ω; the metric G;
+            ``W_k = X_k v_k`` and its running sum C over the joints.
+        """
+        q = np.ascontiguousarray(q, dtype=float)
+        X, T = self._generators(q)
+        Y = X @ T[:, None]
+        YO = Y * self._mask
+        G = np.einsum('nixy,njxy->nij', YO, Y) + self._eps_eye
+        W = X * v[..., None, None]
+        return q, X, T, Y, YO, G, W, np.cumsum(W, axis=1)
+
+    @staticmethod
+    def _velocity_columns(X: np.ndarray, T: np.ndarray, C: np.ndarray) -> np.ndarray:
+        """Jdot columns ``D_k = Σ_j ∂²T/∂q_j∂q_k v_j = (C_k X_k + X_k (C_n − C_k)) T``, (N, dof, 4, 4)."""
+        return (C @ X + X @ (C[:, -1:] - C)) @ T[:, None]
+
     def jerk(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Geodesic acceleration q'' and its s-derivative q''' at (q, q'), without full Jacobians.
 
@@ -111,13 +132,7 @@ class GeodesicEquations:
         Raises:
             SingularMetricError: G is singular at one of the configurations.
         """
-        q = np.ascontiguousarray(q, dtype=float)
-        X, T = self._generators(q)
-        Tn = T[:, None]
-        Y = X @ Tn
-        YO = Y * self._mask
-        G = np.einsum('nixy,njxy->nij', YO, Y) + self._eps_eye
-        W = X * v[..., None, None]
+        q, X, T, Y, YO, G, W, C = self._terms(q, v)
         # Taylor coefficients c1, c2, c3 of e^{W_1 t} ... e^{W_n t} (pose derivatives d! c_d T).
         c1 = np.zeros(T.shape)
         c2 = np.zeros(T.shape)
@@ -131,8 +146,7 @@ class GeodesicEquations:
         H = 2.0 * c2 @ T
         T3 = 6.0 * c3 @ T
         a = self._solve(G, -np.einsum('nixy,nxy->ni', YO, H)[..., None], q)[..., 0]
-        C = np.cumsum(W, axis=1)
-        D = (C @ X + X @ (C[:, -1:] - C)) @ Tn
+        D = self._velocity_columns(X, T, C)
         Da = np.einsum('nkxy,nk->nxy', D, a)
         R4 = np.einsum('nkxy,nk->nxy', Y, a) + H
         rhs = (np.einsum('nkxy,nxy->nk', D, R4 * self._mask)
@@ -151,14 +165,8 @@ class GeodesicEquations:
         Raises:
             SingularMetricError: G is singular at one of the configurations.
         """
-        q = np.ascontiguousarray(q, dtype=float)
-        X, T = self._generators(q)
+        q, X, T, Y, YO, G, W, C = self._terms(q, v)
         Tn = T[:, None]
-        Y = X @ Tn                                   # ∂T/∂q_k
-        YO = Y * self._mask
-        G = np.einsum('nixy,njxy->nij', YO, Y) + self._eps_eye
-        W = X * v[..., None, None]
-        C = np.cumsum(W, axis=1)
         P = C - W                                    # Σ_{j<k} W_j
         Wtot = C[:, -1:]
         terms = (W + 2.0 * P) @ W
@@ -169,8 +177,7 @@ class GeodesicEquations:
         if not jacobians:
             a = self._solve(G, -b[..., None], q)[..., 0]
             return a, None, None
-        # Jdot columns: D_k = Σ_j ∂²T/∂q_j∂q_k v_j = (C_k X_k + X_k (Wtot - C_k)) T
-        D = (C @ X + X @ (Wtot - C)) @ Tn
+        D = self._velocity_columns(X, T, C)
         JtOD = np.einsum('nixy,nkxy->nik', YO, D)
         # One factorisation-free batched solve for a and ∂a/∂v.
         sol = self._solve(G, np.concatenate([-b[..., None], -2.0 * JtOD], axis=-1), q)
@@ -442,15 +449,6 @@ def collocation_rms(equations: GeodesicEquations, s: np.ndarray, q: np.ndarray, 
     R = (np.vstack(dys) - F) / (1.0 + np.abs(F))
     r2 = np.sum(R * R, axis=1).reshape(3, -1)
     return np.sqrt(0.5 * (32.0 / 45.0 * r2[0] + 49.0 / 90.0 * (r2[1] + r2[2])))
-
-
-def refine_mesh(s: np.ndarray, rms: np.ndarray, tol: float) -> np.ndarray:
-    """solve_bvp's mesh refinement: 1 node into intervals with tol < rms < 100 tol, 2 beyond."""
-    one = np.nonzero((rms > tol) & (rms < 100 * tol))[0]
-    two = np.nonzero(rms >= 100 * tol)[0]
-    return np.sort(np.concatenate([
-        s, 0.5 * (s[one] + s[one + 1]), (2 * s[two] + s[two + 1]) / 3, (s[two] + 2 * s[two + 1]) / 3]))
-
 
 def interpolation_error(equations: GeodesicEquations, s: np.ndarray, q: np.ndarray, v: np.ndarray,
                         a: np.ndarray, spline: QuinticHermite | None = None) -> tuple[np.ndarray, np.ndarray]:
