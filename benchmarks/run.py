@@ -33,7 +33,7 @@ from geodesic_planner.geodesic import GeodesicEquations
 from geodesic_planner.kinematics import PRISMATIC, REVOLUTE, chain_from_dh
 from geodesic_planner.request import load_request
 from geodesic_planner.urdf import regular_home
-from geodesic_planner.transforms import line_slerp, pose_error, so3_exp
+from geodesic_planner.transforms import line_slerp, make_transform, pose_error, so3_exp
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -169,13 +169,17 @@ def yaw_pose(x, y, yaw):
     return T
 
 
+def moved(T, dp, rotvec):
+    """T translated by dp (m, base frame) and rotated by so3_exp(rotvec) (rad, tool frame)."""
+    return make_transform(T[:3, 3] + np.asarray(dp, dtype=float),
+                          T[:3, :3] @ so3_exp(np.asarray(rotvec, dtype=float)))
+
+
 def ur5e_case():
     robot = load_robot('ur5e')
     q0 = np.array([0.3, -1.2, 1.4, -1.5, -1.4, 0.2])
     T_a = robot.fk(q0)
-    T_b = T_a.copy()
-    T_b[:3, 3] += [0.2, -0.1, 0.15]
-    T_b[:3, :3] = T_b[:3, :3] @ so3_exp(np.array([0.0, 0.0, np.pi / 6]))   # line + 30° rotation
+    T_b = moved(T_a, [0.2, -0.1, 0.15], [0.0, 0.0, np.pi / 6])   # line + 30° rotation
     return robot, T_a, T_b, q0
 
 
@@ -272,9 +276,7 @@ def main(argv=None) -> int:
     kr = load_robot(os.path.join(ROOT, 'geodesic_planner', 'data', 'kr6_like.urdf'))
     qk = np.array([0.2, -0.6, 0.9, 0.3, 0.8, -0.2])
     Tk_a = kr.fk(qk)
-    Tk_b = Tk_a.copy()
-    Tk_b[:3, 3] += [0.1, 0.12, -0.08]
-    Tk_b[:3, :3] = Tk_b[:3, :3] @ so3_exp(np.array([0.2, -0.1, 0.3]))
+    Tk_b = moved(Tk_a, [0.1, 0.12, -0.08], [0.2, -0.1, 0.3])
     plk = GeodesicPlanner(kr)
     pk = plk.plan(Tk_a, Tk_b, start_joints=qk)
     ek = tool_error(pk, Tk_a, Tk_b)
@@ -286,9 +288,7 @@ def main(argv=None) -> int:
     pa = load_robot('panda')
     qp = pa.home + np.array([0.1, 0.1, -0.1, 0.2, 0.1, -0.1, 0.1])
     Tp_a = pa.fk(qp)
-    Tp_b = Tp_a.copy()
-    Tp_b[:3, 3] += [0.1, -0.1, 0.1]
-    Tp_b[:3, :3] = Tp_b[:3, :3] @ so3_exp(np.array([0.0, 0.2, 0.2]))
+    Tp_b = moved(Tp_a, [0.1, -0.1, 0.1], [0.0, 0.2, 0.2])
     plp = GeodesicPlanner(pa)
     pp = plp.plan(Tp_a, Tp_b, start_joints=qp)
     ep = tool_error(pp, Tp_a, Tp_b)
@@ -299,10 +299,7 @@ def main(argv=None) -> int:
     # 5 via points on ur5e (6 poses: start, 4 via, goal ... the path has 5 pieces)
     poses = [T_a]
     for k in range(1, 6):
-        T = T_a.copy()
-        T[:3, 3] += [0.05 * k, 0.04 * np.sin(k), 0.03 * k * (-1) ** k]
-        T[:3, :3] = T_a[:3, :3] @ so3_exp(np.array([0.0, 0.0, 0.08 * k]))
-        poses.append(T)
+        poses.append(moved(T_a, [0.05 * k, 0.04 * np.sin(k), 0.03 * k * (-1) ** k], [0.0, 0.0, 0.08 * k]))
     pv = plu.plan_through(poses, start_joints=q0)
     ev = piecewise_tool_error(pv, poses)
     tv = measure(lambda: plu.plan_through(poses, start_joints=q0), R)
@@ -367,9 +364,7 @@ def main(argv=None) -> int:
         qs0 = np.array(q_start)
         for move in range(3):
             T_x = arm.fk(qs0)
-            T_y = T_x.copy()
-            T_y[:3, 3] += rng.uniform(-0.15, 0.15, 3)
-            T_y[:3, :3] = T_y[:3, :3] @ so3_exp(rng.uniform(-0.4, 0.4, 3))
+            T_y = moved(T_x, rng.uniform(-0.15, 0.15, 3), rng.uniform(-0.4, 0.4, 3))
             pla = GeodesicPlanner(arm)
             try:
                 pa_ = pla.plan(T_x, T_y, start_joints=qs0)
@@ -410,11 +405,8 @@ def main(argv=None) -> int:
     for k in (1, 2, 5, 10, 20, 50):
         arc = [T_a]
         for i in range(1, k + 1):
-            T = T_a.copy()
             ang = 0.6 * i / k
-            T[:3, 3] += 0.2 * np.array([np.sin(ang), 1 - np.cos(ang), 0.0])
-            T[:3, :3] = T_a[:3, :3] @ so3_exp(np.array([0.0, 0.0, ang / 2]))
-            arc.append(T)
+            arc.append(moved(T_a, 0.2 * np.array([np.sin(ang), 1 - np.cos(ang), 0.0]), [0.0, 0.0, ang / 2]))
         pvk = plu.plan_through(arc, start_joints=q0)
         tvk = measure(lambda: plu.plan_through(arc, start_joints=q0), max(3, R // 5), warmup=1)
         srows.append((f'ur5e arc through {k} via point(s)', f'{tvk.median_ms:.2f}', pvk.solver.method, pvk.solver.iterations, pvk.solver.mesh_size))
