@@ -398,7 +398,7 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
               'tool path': (t5 - t4) * 1e3}
     return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
                       int(solver.iterations), float(solver.time_ms), stages,
-                      str(getattr(solver, 'method', '')), int(solver.mesh_size))
+                      solver.method, int(solver.mesh_size))
 
 
 # --------------------------------------------------------------------------- node
