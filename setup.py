@@ -6,7 +6,7 @@ PACKAGE = 'geodesic_planner'
 setup(
     name=PACKAGE,
     version='0.1.0',
-    packages=find_packages(exclude=['test', 'test.*', 'benchmarks']),
+    packages=find_packages(exclude=['test', 'test.*', 'benchmarks', 'tools', 'tools.*', 'msg_examples', 'msg_examples.*']),
     package_data={PACKAGE: ['py.typed', 'data/*.urdf']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
@@ -26,9 +26,9 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'geodesic-plan = geodesic_planner.cli:plan_main',
-            'geodesic-compare = geodesic_planner.compare:main',
-            'geodesic-bag = geodesic_planner.bag_cli:main',
+            'geodesic-plan = geodesic_planner.cli.plan:plan_main',
+            'geodesic-compare = geodesic_planner.cli.compare:main',
+            'geodesic-bag = geodesic_planner.cli.bag:main',
             'geodesic_planner_node = geodesic_planner.ros.planner_node:main',
             'trajectory_processor_node = geodesic_planner.ros.processor_node:main',
         ],

@@ -14,8 +14,8 @@ import time
 import numpy as np
 
 from geodesic_planner import GeodesicPlanner, GeodesicPlannerError, load_robot
-from geodesic_planner.metric import DEFAULT_REDUNDANT_EPSILON
-from geodesic_planner.transforms import line_slerp, pose_error, so3_exp
+from geodesic_planner.core.metric import DEFAULT_REDUNDANT_EPSILON
+from geodesic_planner.core.transforms import line_slerp, pose_error, so3_exp
 
 EPSILONS = (1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
 

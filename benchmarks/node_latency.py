@@ -46,9 +46,12 @@ from typing import Any
 
 import numpy as np
 
-from geodesic_planner import load_robot, netns
+from geodesic_planner import load_robot
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tools/ lives at the repository root
+from tools import netns  # noqa: E402
 from geodesic_planner.ros import conversions as cv
-from geodesic_planner.transforms import make_transform, so3_exp
+from geodesic_planner.core.transforms import make_transform, so3_exp
 
 DEADLINE = 60.0
 

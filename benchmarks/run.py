@@ -28,12 +28,12 @@ import scipy
 from scipy.integrate import solve_bvp
 
 from geodesic_planner import GeodesicPlanner, load_robot
-from geodesic_planner.baselines import cartesian_ik_path
-from geodesic_planner.geodesic import GeodesicEquations
-from geodesic_planner.kinematics import PRISMATIC, REVOLUTE, chain_from_dh
-from geodesic_planner.request import load_request
-from geodesic_planner.urdf import regular_home
-from geodesic_planner.transforms import line_slerp, make_transform, pose_error, so3_exp
+from geodesic_planner.core.baselines import cartesian_ik_path
+from geodesic_planner.core.geodesic import GeodesicEquations
+from geodesic_planner.core.kinematics import PRISMATIC, REVOLUTE, chain_from_dh
+from geodesic_planner.io.requests import load_request
+from geodesic_planner.core.urdf import regular_home
+from geodesic_planner.core.transforms import line_slerp, make_transform, pose_error, so3_exp
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)

@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import logging
 
-from .errors import (BagError, BVPError, GeodesicPlannerError, IKError, KinematicsError, LimitError,
+from .core.errors import (BagError, BVPError, GeodesicPlannerError, IKError, KinematicsError, LimitError,
                      RequestError, SingularMetricError)
-from .geodesic import GeodesicEquations, GeodesicPath, SolverReport
-from .ik import IKSolution, solve_ik
-from .kinematics import Chain, Joint, chain_from_dh
-from .metric import Metric
-from .path import JointPath
-from .piecewise import PiecewiseGeodesicPath
-from .planner import GeodesicPlanner
-from .robots import PRESETS, load_robot
+from .core.geodesic import GeodesicEquations, GeodesicPath, SolverReport
+from .core.ik import IKSolution, solve_ik
+from .core.kinematics import Chain, Joint, chain_from_dh
+from .core.metric import Metric
+from .core.path import JointPath
+from .core.piecewise import PiecewiseGeodesicPath
+from .core.planner import GeodesicPlanner
+from .core.robots import PRESETS, load_robot
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 

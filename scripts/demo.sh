@@ -3,7 +3,7 @@
 #
 # Usage: bash scripts/demo.sh [--output DIR] [--robot NAME] [--timeout S]
 #   DIR defaults to out/demo, relative to the current directory.
-# Sets up .venv (scripts/setup_env.sh), then runs `python -m geodesic_planner.ros.demo` inside the
+# Sets up .venv (scripts/setup_env.sh), then runs `python -m tools.demo` inside the
 # loopback-only network namespace (scripts/netns.sh; GEODESIC_PLANNER_NETNS=off to opt out).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -12,4 +12,5 @@ bash "$root/scripts/setup_env.sh"
 venv="${GP_VENV:-.venv}"
 case "$venv" in /*) ;; *) venv="$root/$venv" ;; esac
 
-exec bash "$root/scripts/netns.sh" "$venv/bin/python" -m geodesic_planner.ros.demo "$@"
+export PYTHONPATH="$root${PYTHONPATH:+:$PYTHONPATH}"
+exec bash "$root/scripts/netns.sh" "$venv/bin/python" -m tools.demo "$@"

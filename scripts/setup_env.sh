@@ -36,7 +36,7 @@ pick_python() {
 }
 
 [ -f "$lock" ] || die "missing $lock"
-want="$(cat "$lock" "$root/setup.py" | sha256sum | cut -d' ' -f1)"
+want="$(cat "$lock" "$root/setup.py" "$root/pyproject.toml" | sha256sum | cut -d' ' -f1)"
 
 # Fast path: venv present, stamp matches.
 if [ -x "$venv/bin/python" ] && [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then

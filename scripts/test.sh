@@ -3,7 +3,7 @@
 # private loopback-only network namespace (see scripts/netns.sh).
 #
 # Usage: bash scripts/test.sh [PYTEST ARGS...]
-#   e.g. bash scripts/test.sh -x -q test/test_infra.py
+#   e.g. bash scripts/test.sh -x -q test/infra/test_infra.py
 #        bash scripts/test.sh --run-slow        (also the long runs marked @pytest.mark.slow)
 # Exit code: pytest's; "no tests collected" (pytest's 5) is turned into a failure (1).
 set -euo pipefail

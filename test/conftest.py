@@ -13,7 +13,7 @@ import os
 
 import pytest
 
-from geodesic_planner import netns
+from tools import netns
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

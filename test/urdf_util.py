@@ -270,7 +270,7 @@ def arm_urdf(spec: dict) -> str:
     keys = ('base', 'tool', 'lower', 'upper', 'velocity', 'joint_names', 'split', 'root_link',
             'base_link', 'tip_link')
     comment = (f'{spec["name"]}: {spec["doc"]} Written from a standard DH table by test/urdf_util.py '
-               '(python test/urdf_util.py regenerates it); test/test_urdf.py checks its FK against '
+               '(python test/urdf_util.py regenerates it); test/core/test_urdf.py checks its FK against '
                'the DH product.')
     return dh_to_urdf(spec['name'], spec['rows'], spec['kinds'], comment=comment,
                       **{k: spec[k] for k in keys})

@@ -2,7 +2,7 @@
 
 Messages <-> arrays for the planner node: JointTrajectory, Pose/PoseStamped <-> 4x4 transforms,
 nav_msgs/Path of tool poses, a MarkerArray for RViz, and JointState -> joint vector in robot order.
-Invalid input raises :class:`geodesic_planner.errors.RequestError` with a message naming the cause.
+Invalid input raises :class:`geodesic_planner.core.errors.RequestError` with a message naming the cause.
 """
 from __future__ import annotations
 
@@ -19,8 +19,8 @@ from std_msgs.msg import ColorRGBA, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ..errors import RequestError
-from ..transforms import make_transform, matrix_to_quat, pose_to_transform, quat_to_matrix
+from ..core.errors import RequestError
+from ..core.transforms import make_transform, matrix_to_quat, pose_to_transform, quat_to_matrix
 
 
 @dataclass(frozen=True)
@@ -161,7 +161,7 @@ def pose_to_matrix(pose: Pose, what: str = 'pose') -> np.ndarray:
     """4x4 transform of a geometry_msgs/Pose, validated.
 
     The quaternion is normalised when its norm is within 1e-3 of 1
-    (:func:`geodesic_planner.transforms.check_quaternion`).
+    (:func:`geodesic_planner.core.transforms.check_quaternion`).
 
     Args:
         pose: position in m, orientation quaternion (x, y, z, w).

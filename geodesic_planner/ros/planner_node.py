@@ -90,7 +90,7 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from .. import GeodesicPlanner, load_robot
-from ..errors import GeodesicPlannerError, LimitError, RequestError
+from ..core.errors import GeodesicPlannerError, LimitError, RequestError
 from . import conversions as cv
 from .matching import matched_logger, wait_for_matched_subscriptions
 
@@ -242,7 +242,7 @@ def load_model(robot: str, robot_description: str, base_link: str, tip_link: str
     tip = tip_link or None
     try:
         if robot_description.strip():
-            from ..urdf import chain_from_urdf
+            from ..core.urdf import chain_from_urdf
             return chain_from_urdf(robot_description, base, tip)
         if not robot.strip():
             raise ConfigError('robot: empty (give a preset name or a URDF path, or robot_description)')

@@ -1,7 +1,7 @@
 """Regenerate msg_examples/joint_trajectory*.yaml from the fixture bag (run from the repository root)."""
 import yaml
-from geodesic_planner.bag import read_trajectories
-from geodesic_planner.resample import resample
+from geodesic_planner.io.bag import read_trajectories
+from geodesic_planner.timing.resample import resample
 
 BAG = 'msg_examples/bags/paper_3r_scaling_0.5'
 rin = read_trajectories(BAG, '/geodesic_planner/joint_trajectory')[0]
@@ -29,7 +29,7 @@ dump('msg_examples/joint_trajectory.yaml', f'''
 # `ros2 topic pub /geodesic_planner/joint_trajectory trajectory_msgs/msg/JointTrajectory "$(cat FILE)"`).
 # The paper example (Chen, Li & Tang 2016, Table 1; planar 3R, A -> B) as the planner published it
 # in msg_examples/bags/paper_3r_scaling_0.5 ({rin.t.size} points every 0.01 s, {rin.duration:.3f} s),
-# shown here resampled every 0.25 s with geodesic_planner.resample (quintic Hermite, last point at the end).
+# shown here resampled every 0.25 s with geodesic_planner.timing.resample (quintic Hermite, last point at the end).
 # Header stamp zero: start on arrival. Units: rad, rad/s, rad/s^2. Rest to rest.
 ''', msg(rin.joint_names, t, q, dq, ddq))
 

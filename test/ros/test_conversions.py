@@ -13,9 +13,9 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 from visualization_msgs.msg import Marker  # noqa: E402
 
-from geodesic_planner.errors import RequestError  # noqa: E402
+from geodesic_planner.core.errors import RequestError  # noqa: E402
 from geodesic_planner.ros import conversions as cv  # noqa: E402
-from geodesic_planner.transforms import make_transform, so3_exp  # noqa: E402
+from geodesic_planner.core.transforms import make_transform, so3_exp  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

@@ -38,8 +38,8 @@ from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 import geodesic_planner  # noqa: E402
 from geodesic_planner import load_robot  # noqa: E402
 from geodesic_planner.ros import conversions as cv  # noqa: E402
-from geodesic_planner.transforms import make_transform, pose_error, so3_exp, so3_log  # noqa: E402
-from geodesic_planner.urdf import chain_from_urdf  # noqa: E402
+from geodesic_planner.core.transforms import make_transform, pose_error, so3_exp, so3_log  # noqa: E402
+from geodesic_planner.core.urdf import chain_from_urdf  # noqa: E402
 
 from .launch import (Collector, RclpyRuntime, call_service, popen_node, wait_for_service,  # noqa: E402
                      wait_for_subscribers, wait_until, warm_up_client)

@@ -1,0 +1,1 @@
+"""Console scripts: geodesic-plan, geodesic-compare, geodesic-bag."""

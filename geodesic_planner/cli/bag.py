@@ -1,0 +1,216 @@
+"""``geodesic-bag``: inspect, plot and repair trajectory bags (rosbags only, no rclpy).
+
+Usage::
+
+    geodesic-bag info BAG
+    geodesic-bag plot BAG --output DIR [--input-topic T] [--output-topic T]
+    geodesic-bag repair BAG
+
+``info`` prints the topics (type, count, duration) and one line per recorded JointTrajectory
+(points, duration, peak |v|, peak |a|, and why it is invalid when it is). ``plot`` writes one PNG
+per processed trajectory: joint positions, velocities and accelerations against time, the planner's
+trajectory (input topic, markers) over the processor's (output topic, lines); trajectories on
+other JointTrajectory topics, or inputs without an output, get a PNG of their own. ``repair``
+rebuilds a bag whose recording was killed (see :func:`geodesic_planner.io.bag.repair`).
+Errors print one line ``ERROR: ...`` and exit with 1.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..io.bag import BagInfo, TrajectoryRecord, bag_info, read_trajectories, repair
+from ..core.errors import GeodesicPlannerError
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+DEFAULT_INPUT_TOPIC = '/geodesic_planner/joint_trajectory'
+DEFAULT_OUTPUT_TOPIC = '/trajectory_processor/joint_trajectory'
+
+__all__ = ['DEFAULT_INPUT_TOPIC', 'DEFAULT_OUTPUT_TOPIC', 'format_info', 'main', 'pair_trajectories', 'plot_bag']
+
+
+def _utc(stamp_ns: int | None) -> str:
+    if stamp_ns is None:
+        return '-'
+    return datetime.fromtimestamp(stamp_ns * 1e-9, timezone.utc).isoformat(timespec='milliseconds')
+
+
+def _num(x: float) -> str:
+    return '-' if math.isnan(x) else f'{x:.4g}'
+
+
+def format_info(info: BagInfo) -> str:
+    """The text ``geodesic-bag info`` prints."""
+    lines = [
+        f'bag: {info.path} ({info.storage}), {info.message_count} messages, '
+        f'{info.duration:.3f} s, start {_utc(info.start_ns)}',
+    ]
+    if info.custom_data:
+        lines.append('custom data: ' + ', '.join(f'{k}={v}' for k, v in sorted(info.custom_data.items())))
+    lines.append('topics:')
+    width = max((len(t.name) for t in info.topics), default=0)
+    twidth = max((len(t.msgtype) for t in info.topics), default=0)
+    for t in info.topics:
+        lines.append(f'  {t.name:<{width}}  {t.msgtype:<{twidth}}  {t.count:6d} msgs  {t.duration:8.3f} s')
+    lines.append(f'trajectories: {len(info.trajectories)}')
+    for s in info.trajectories:
+        rel = (s.stamp_ns - info.start_ns) * 1e-9 if info.start_ns is not None else 0.0
+        line = (f'  {s.topic} #{s.index} at +{rel:.3f} s: {s.points} points, {s.dof} joints, '
+                f'{s.duration:.3f} s, peak |v| {_num(s.peak_velocity)}, peak |a| {_num(s.peak_acceleration)}')
+        if s.problems:
+            line += f'  INVALID: {"; ".join(s.problems[:3])}' + (' ...' if len(s.problems) > 3 else '')
+        lines.append(line)
+    return '\n'.join(lines)
+
+
+def pair_trajectories(
+    inputs: list[TrajectoryRecord], outputs: list[TrajectoryRecord],
+) -> list[tuple[TrajectoryRecord | None, TrajectoryRecord | None]]:
+    """Match each output with the latest input recorded before it (the one it was made from).
+
+    Returns:
+        (input, output) pairs in time order; an input without an output (e.g. rejected as
+        invalid) appears as (input, None), an output without an input as (None, output).
+    """
+    pairs: list[tuple[TrajectoryRecord | None, TrajectoryRecord | None]] = []
+    used: set[int] = set()
+    for out in outputs:
+        before = [i for i, r in enumerate(inputs) if r.stamp_ns <= out.stamp_ns and i not in used]
+        if before:
+            used.add(before[-1])
+            pairs.append((inputs[before[-1]], out))
+        else:
+            pairs.append((None, out))
+    pairs += [(r, None) for i, r in enumerate(inputs) if i not in used]
+    pairs.sort(key=lambda p: (p[0] or p[1]).stamp_ns)  # type: ignore[union-attr]
+    return pairs
+
+
+def _plot_one(path: Path, before: TrajectoryRecord | None, after: TrajectoryRecord | None, title: str) -> None:
+    """3 x 2 grid: rows position/velocity/acceleration; left the input, right the output."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(3, 2, figsize=(12, 8), sharey='row', squeeze=False)
+    labels = ('position [rad or m]', 'velocity [/s]', 'acceleration [/s²]')
+    colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
+    for col, (rec, heading) in enumerate(((before, 'before processing'), (after, 'after processing'))):
+        axes[0, col].set_title(f'{heading}: {rec.topic}' if rec is not None else f'{heading}: none', fontsize=9)
+        if rec is None:
+            continue
+        style = dict(marker='o', ms=3, lw=0.8) if rec.t.size <= 200 else dict(lw=1.5)
+        for row, values in enumerate((rec.positions, rec.velocities, rec.accelerations)):
+            if values is None:
+                axes[row, col].text(0.5, 0.5, 'not in message', ha='center', va='center',
+                                    transform=axes[row, col].transAxes, color='gray')
+                continue
+            for j, name in enumerate(rec.joint_names):
+                axes[row, col].plot(rec.t, values[:, j], color=colors[j % len(colors)], label=name, **style)
+    for row, label in enumerate(labels):
+        axes[row, 0].set_ylabel(label)
+        for col in range(2):
+            axes[row, col].grid(True, alpha=0.3)
+    for col in range(2):
+        axes[-1, col].set_xlabel('time from start [s]')
+    axes[0, 0 if before is not None else 1].legend(fontsize=7, loc='best')
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def plot_bag(
+    bag: str | Path,
+    output_dir: str | Path,
+    *,
+    input_topic: str = DEFAULT_INPUT_TOPIC,
+    output_topic: str = DEFAULT_OUTPUT_TOPIC,
+) -> list[Path]:
+    """Write PNGs of every trajectory in a bag (input and its processed output together).
+
+    Returns:
+        The files written, ``trajectory_00.png``, ``trajectory_01.png``, ...
+
+    Raises:
+        BagError: unreadable bag or no JointTrajectory in it.
+    """
+    from ..core.errors import BagError
+
+    records = read_trajectories(bag)
+    if not records:
+        msg = f'no trajectory_msgs/msg/JointTrajectory messages in {bag}'
+        raise BagError(msg)
+    inputs = [r for r in records if r.topic == input_topic]
+    outputs = [r for r in records if r.topic == output_topic]
+    pairs = pair_trajectories(inputs, outputs)
+    pairs += [(r, None) for r in records if r.topic not in (input_topic, output_topic)]
+    out_dir = Path(output_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        msg = f'cannot create output directory {out_dir}: {err}'
+        raise BagError(msg) from err
+    written = []
+    for k, (before, after) in enumerate(pairs):
+        parts = []
+        if before is not None:
+            parts.append(f'{before.topic}: {before.t.size} points, {before.duration:.3f} s')
+        if after is not None:
+            parts.append(f'{after.topic}: {after.t.size} points, {after.duration:.3f} s')
+        problems = (before.problems if before is not None else ()) + (after.problems if after is not None else ())
+        title = f'trajectory {k}: ' + ' -> '.join(parts) + (f'\nINVALID: {problems[0]}' if problems else '')
+        path = out_dir / f'trajectory_{k:02d}.png'
+        _plot_one(path, before, after, title)
+        written.append(path)
+    return written
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog='geodesic-bag', description=__doc__.split('\n\n')[0])
+    sub = parser.add_subparsers(dest='command', required=True)
+    p_info = sub.add_parser('info', help='topics, counts, durations and a summary of each trajectory')
+    p_info.add_argument('bag', help='rosbag2 directory')
+    p_plot = sub.add_parser('plot', help='PNG of joint position/velocity/acceleration vs time')
+    p_plot.add_argument('bag', help='rosbag2 directory')
+    p_plot.add_argument('--output', '-o', required=True, help='directory for the PNG files')
+    p_plot.add_argument('--input-topic', default=DEFAULT_INPUT_TOPIC, help='trajectory before processing')
+    p_plot.add_argument('--output-topic', default=DEFAULT_OUTPUT_TOPIC, help='trajectory after processing')
+    p_rep = sub.add_parser('repair', help='make an interrupted recording readable (rebuild index and metadata)')
+    p_rep.add_argument('bag', help='rosbag2 directory')
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``geodesic-bag``; returns the exit code (0 ok, 1 error, 2 usage)."""
+    args = _parser().parse_args(argv)
+    try:
+        if args.command == 'info':
+            print(format_info(bag_info(args.bag)))
+        elif args.command == 'plot':
+            files = plot_bag(args.bag, args.output, input_topic=args.input_topic,
+                             output_topic=args.output_topic)
+            for f in files:
+                print(f)
+        else:
+            report = repair(args.bag)
+            state = 'repaired' if report.repaired else 'unchanged'
+            counts = ', '.join(f'{t}: {n}' for t, n in report.messages.items())
+            print(f'{state}: {report.path} ({report.storage}): {report.note}; {counts}')
+            if report.damaged_file is not None:
+                print(f'original storage file kept as {report.damaged_file}')
+    except (GeodesicPlannerError, OSError) as err:
+        print(f'ERROR: {err}', file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

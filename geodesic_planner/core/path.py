@@ -1,0 +1,94 @@
+"""Joint paths q(s), s ∈ [0, 1]: the common interface and the quintic Hermite spline behind them.
+
+Every path (geodesic, piecewise geodesic, baselines) offers ``evaluate(s) -> (q, dq, ddq, dddq)``
+with derivatives w.r.t. s, ``ee_poses(s)`` and ``timed(...)`` (time parameterization).
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .errors import RequestError
+from .kinematics import Chain
+
+if TYPE_CHECKING:
+    from ..timing.parameterize import Trajectory
+
+
+def check_order(order: int) -> int:
+    """Validate a derivative order for evaluate(): 0, 1, 2 or 3."""
+    if order not in (0, 1, 2, 3):
+        raise RequestError(f'order must be 0, 1, 2 or 3, got {order!r}')
+    return int(order)
+
+
+def check_s(s: object) -> np.ndarray:
+    """Validate a path-parameter array: 1-D, finite, inside [0, 1] (tiny round-off clipped).
+
+    Raises:
+        RequestError: otherwise.
+    """
+    try:
+        arr = np.atleast_1d(np.asarray(s, dtype=float))
+    except (TypeError, ValueError) as err:
+        raise RequestError(f's: expected a 1-D array of numbers in [0, 1] ({err})') from err
+    if arr.ndim != 1:
+        raise RequestError(f's: expected a 1-D array, got shape {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise RequestError('s: contains NaN or inf')
+    if arr.size and (arr.min() < -1e-12 or arr.max() > 1 + 1e-12):
+        raise RequestError(f's: values must lie in [0, 1], got [{arr.min():.6g}, {arr.max():.6g}]')
+    return np.clip(arr, 0.0, 1.0)
+
+
+class JointPath(ABC):
+    """A joint path over s ∈ [0, 1] for a robot."""
+
+    robot: Chain
+
+    @abstractmethod
+    def evaluate(self, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
+        """q, dq/ds, d²q/ds², d³q/ds³ at s (1-D in [0, 1]); each (len(s), dof); rad or m.
+
+        ``order`` < 3 returns only the first ``order + 1`` of them (cheaper for geodesics, whose
+        third derivative needs the Jacobians of the geodesic equations).
+        """
+
+    @property
+    def joint_names(self) -> list[str]:
+        """Joint names in the robot's order."""
+        return list(self.robot.joint_names)
+
+    @property
+    def dof(self) -> int:
+        """Number of joints."""
+        return self.robot.dof
+
+    @property
+    def q_start(self) -> np.ndarray:
+        """Joint positions at s = 0."""
+        return self.evaluate(np.array([0.0]))[0][0]
+
+    @property
+    def q_goal(self) -> np.ndarray:
+        """Joint positions at s = 1."""
+        return self.evaluate(np.array([1.0]))[0][0]
+
+    def ee_poses(self, s: np.ndarray) -> np.ndarray:
+        """Tool poses (len(s), 4, 4) along the path, base frame."""
+        return self.robot.fk(self.evaluate(check_s(s))[0])
+
+    def timed(self, max_velocity: object = None, max_acceleration: object = None,
+              duration: float | None = None) -> Trajectory:
+        """Rest-to-rest time parameterization under per-joint limits (see timing.py).
+
+        Args:
+            max_velocity, max_acceleration: per-joint limits (scalars broadcast); the robot's
+                limits when None; rad/s (m/s), rad/s² (m/s²).
+            duration: stretch to exactly this duration, s (must not be shorter than feasible).
+        """
+        from ..timing.parameterize import time_parameterize
+        return time_parameterize(self, max_velocity=max_velocity, max_acceleration=max_acceleration,
+                                 duration=duration)

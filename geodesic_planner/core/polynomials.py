@@ -1,0 +1,82 @@
+"""Piecewise quintic (and cubic) Hermite polynomials: coefficients and vectorised evaluation.
+
+Shared by the paths (:class:`QuinticHermite`) and the trajectory resampler
+(:mod:`geodesic_planner.timing.resample`), so a path and a resampled trajectory interpolate alike.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ['QuinticHermite', 'evaluate_polynomials', 'quintic_coefficients']
+
+
+def quintic_coefficients(
+    t: np.ndarray, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+) -> np.ndarray:
+    """Per-segment polynomial coefficients of the quintic Hermite interpolant.
+
+    Segment i covers [t[i], t[i+1]] with local time tau = t - t[i] and
+    q(tau) = sum_k c[i, k] tau**k, matching positions, velocities and accelerations at both ends
+    (the formulas of joint_trajectory_controller's ``Trajectory::interpolate_between_points``).
+
+    Args:
+        t: waypoint times, shape (N,), s, strictly increasing, N >= 2.
+        q, dq, ddq: positions, velocities, accelerations, shape (N, dof).
+
+    Returns:
+        Coefficients, shape (N - 1, 6, dof), ascending powers of tau (units rad/s**k or m/s**k).
+    """
+    h = np.diff(t)[:, None]
+    p0, p1 = q[:-1], q[1:]
+    v0, v1 = dq[:-1], dq[1:]
+    a0, a1 = ddq[:-1], ddq[1:]
+    h2 = h * h
+    c = np.empty((len(h), 6, q.shape[1]))
+    c[:, 0] = p0
+    c[:, 1] = v0
+    c[:, 2] = 0.5 * a0
+    c[:, 3] = (-20.0 * p0 + 20.0 * p1 - 3.0 * a0 * h2 + a1 * h2 - 12.0 * v0 * h - 8.0 * v1 * h) / (2.0 * h2 * h)
+    c[:, 4] = (30.0 * p0 - 30.0 * p1 + 3.0 * a0 * h2 - 2.0 * a1 * h2 + 16.0 * v0 * h + 14.0 * v1 * h) / (2.0 * h2 * h2)
+    c[:, 5] = (-12.0 * p0 + 12.0 * p1 - a0 * h2 + a1 * h2 - 6.0 * v0 * h - 6.0 * v1 * h) / (2.0 * h2 * h2 * h)
+    return c
+
+
+def evaluate_polynomials(c: np.ndarray, t: np.ndarray, times: np.ndarray, order: int = 2) -> tuple[np.ndarray, ...]:
+    """Evaluate piecewise polynomials (N-1, 6, dof) at times (M,): position, velocity, acceleration.
+
+    ``order`` < 2 returns only the first ``order + 1`` of them.
+    """
+    seg = np.minimum(np.maximum(np.searchsorted(t, times, side='right') - 1, 0), len(t) - 2)
+    tau = (times - t[seg])[:, None]
+    cs = c[seg]  # (M, 6, dof)
+    pos = cs[:, 5]
+    vel = 5.0 * cs[:, 5]
+    acc = 20.0 * cs[:, 5]
+    for k in (4, 3, 2, 1, 0):  # Horner over the 6 coefficients (fixed, not per sample)
+        pos = pos * tau + cs[:, k]
+        if k >= 1 and order >= 1:
+            vel = vel * tau + k * cs[:, k]
+        if k >= 2 and order >= 2:
+            acc = acc * tau + k * (k - 1) * cs[:, k]
+    return (pos, vel, acc)[:order + 1]
+
+
+
+class QuinticHermite:
+    """C² piecewise-quintic interpolation of values, first and second derivatives at knots.
+
+    The same interpolant the trajectory processor uses (:func:`quintic_coefficients`):
+    coefficients are computed once, evaluation is one vectorised Horner pass.
+
+    Args:
+        x: knots (m,), strictly increasing.
+        y, dy, ddy: values and derivatives at the knots, (m, d).
+    """
+
+    def __init__(self, x: np.ndarray, y: np.ndarray, dy: np.ndarray, ddy: np.ndarray) -> None:
+        self.x = np.asarray(x, dtype=float)
+        self._coefficients = quintic_coefficients(self.x, *(np.asarray(a, dtype=float) for a in (y, dy, ddy)))
+
+    def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]:
+        """Values and derivatives up to ``order`` (<= 2) at xs (k,): list of (k, d) arrays."""
+        return list(evaluate_polynomials(self._coefficients, self.x, xs, order=min(order, 2)))

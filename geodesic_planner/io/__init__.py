@@ -1,0 +1,1 @@
+"""Files in and out: YAML requests, rosbag2 bags (rosbags), plots."""

@@ -1,0 +1,131 @@
+"""Planning requests from YAML files (the format of ``msg_examples/*.yaml``).
+
+    robot: planar_3r            # preset name or URDF path (relative to the YAML file)
+    metric: paper               # optional: paper | position; position_weight, orientation_weight, epsilon
+    start:                      # geometry_msgs/Pose as `ros2 service call` writes it
+      position: {x: 2.5, y: 1.5, z: 0.0}
+      orientation: {x: 0.0, y: 0.0, z: 0.2588, w: 0.9659}
+    goal: {...}                 # or start_joints: [...] / goal_joints: [...]
+    via: [{...}, ...]           # optional intermediate poses (piecewise geodesic)
+    tolerance: 0.001            # optional: allowed distance to the nearest reachable pose
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ..core.errors import RequestError
+from ..core.kinematics import Chain
+from ..core.planner import GeodesicPlanner
+from ..core.robots import load_robot
+from ..core.transforms import pose_from_mapping
+
+KNOWN_KEYS = {'robot', 'metric', 'position_weight', 'orientation_weight', 'epsilon', 'start', 'goal',
+              'start_joints', 'goal_joints', 'via', 'tolerance', 'base_link', 'tip_link', 'description'}
+
+
+@dataclass
+class PlanRequest:
+    """A parsed, validated planning request."""
+
+    robot: Chain
+    start: np.ndarray | None
+    goal: np.ndarray | None
+    start_joints: np.ndarray | None = None
+    goal_joints: np.ndarray | None = None
+    via: list[np.ndarray] = field(default_factory=list)
+    tolerance: float | None = None
+    planner_options: dict[str, Any] = field(default_factory=dict)
+
+    def planner(self) -> GeodesicPlanner:
+        """A planner for this request's robot and metric options."""
+        return GeodesicPlanner(self.robot, **self.planner_options)
+
+    def plan(self, planner: GeodesicPlanner | None = None):  # noqa: ANN201 (GeodesicPath | Piecewise)
+        """Plan it: a geodesic, or a piecewise geodesic when via points are given."""
+        planner = planner or self.planner()
+        if self.via:
+            if self.goal is None:
+                raise RequestError('via points need a goal pose')
+            return planner.plan_through([self.start, *self.via, self.goal], self.start_joints,
+                                        tolerance=self.tolerance)
+        return planner.plan(self.start, self.goal, self.start_joints, self.goal_joints,
+                            tolerance=self.tolerance)
+
+
+def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
+    """PlanRequest from a decoded YAML mapping.
+
+    Raises:
+        RequestError: missing/unknown keys, bad values, unknown robot; KinematicsError for a bad URDF.
+    """
+    if not isinstance(data, Mapping):
+        raise RequestError(f'request: expected a mapping at the top level, got {type(data).__name__}')
+    unknown = sorted(set(data) - KNOWN_KEYS)
+    if unknown:
+        raise RequestError(f'request: unknown keys {unknown}; known keys are {sorted(KNOWN_KEYS)}')
+    if 'robot' not in data:
+        raise RequestError('request: missing "robot" (preset name or URDF path)')
+    robot_ref = data['robot']
+    if not isinstance(robot_ref, str):
+        raise RequestError(f'request: robot must be a string, got {robot_ref!r}')
+    if robot_ref.endswith('.urdf') and not os.path.isabs(robot_ref):
+        robot_ref = os.path.join(base_dir, robot_ref)
+    robot = load_robot(robot_ref, base_link=data.get('base_link'), tip_link=data.get('tip_link'))
+
+    def pose(key: str) -> np.ndarray | None:
+        return None if data.get(key) is None else pose_from_mapping(data[key], key)
+
+    def joints(key: str) -> np.ndarray | None:
+        return None if data.get(key) is None else robot.check_joints(data[key], key)
+
+    via = data.get('via') or []
+    if not isinstance(via, list):
+        raise RequestError('request: via must be a list of poses')
+    opts: dict[str, Any] = {}
+    if 'metric' in data:
+        opts['metric'] = str(data['metric'])
+    for key in ('position_weight', 'orientation_weight', 'epsilon'):
+        if key in data:
+            opts[key] = _number(data[key], key)
+    tol = None if data.get('tolerance') is None else _number(data['tolerance'], 'tolerance')
+    req = PlanRequest(robot, pose('start'), pose('goal'), joints('start_joints'), joints('goal_joints'),
+                      [pose_from_mapping(v, f'via[{i}]') for i, v in enumerate(via)], tol, opts)
+    if req.start is None and req.start_joints is None:
+        raise RequestError('request: give start (a Pose) or start_joints')
+    if req.goal is None and req.goal_joints is None:
+        raise RequestError('request: give goal (a Pose) or goal_joints')
+    return req
+
+
+def _number(value: object, what: str) -> float:
+    try:
+        out = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as err:
+        raise RequestError(f'request: {what} must be a number, got {value!r}') from err
+    if not np.isfinite(out):
+        raise RequestError(f'request: {what} must be finite, got {value!r}')
+    return out
+
+
+def load_request(path: str) -> PlanRequest:
+    """Read and parse a YAML request file.
+
+    Raises:
+        RequestError: unreadable file, malformed YAML, or an invalid request.
+    """
+    try:
+        with open(path, encoding='utf-8') as fh:
+            data = yaml.safe_load(fh)
+    except OSError as err:
+        raise RequestError(f'cannot read request {path!r}: {err.strerror}') from err
+    except yaml.YAMLError as err:
+        mark = getattr(err, 'problem_mark', None)
+        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
+        raise RequestError(f'malformed YAML in {path!r}{where}: {getattr(err, "problem", err)}') from err
+    return parse_request(data, os.path.dirname(os.path.abspath(path)))

@@ -1,0 +1,285 @@
+"""``geodesic-plan`` end to end (real subprocesses of the installed console script).
+
+Success: the paper's 3R request gives JSON whose samples match the exact oracle (closed-form IK
+along the straight line with φ linear in s, and its s-derivatives); the RRPP joint request keeps
+its boundary conditions; a URDF robot given by a path relative to the YAML file; via points.
+Failure: one line ``ERROR: ...`` on stderr naming the cause, no traceback, non-zero exit code.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import yaml
+from numpy.testing import assert_allclose
+
+import urdf_util as U
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+EXAMPLES = os.path.join(ROOT, 'msg_examples')
+KR6 = os.path.join(ROOT, 'geodesic_planner', 'data', 'kr6_like.urdf')
+_script = shutil.which('geodesic-plan', path=os.path.dirname(sys.executable))
+COMMAND = [_script] if _script else [sys.executable, '-m', 'geodesic_planner.cli.plan']
+TIMEOUT = 120
+PARALLEL = 3
+KEYS = {'joint_names', 's', 'positions', 'velocities', 'accelerations', 'jerks', 'ee_positions',
+        'ee_orientations', 'solver'}
+
+
+def run(args, cwd):
+    return subprocess.run(COMMAND + [str(a) for a in args], cwd=cwd, capture_output=True, text=True,
+                          timeout=TIMEOUT, check=False)
+
+
+def yaw_quat(psi):
+    return {'x': 0.0, 'y': 0.0, 'z': float(np.sin(psi / 2)), 'w': float(np.cos(psi / 2))}
+
+
+def pose(x, y, z, quat):
+    return {'position': {'x': x, 'y': y, 'z': z}, 'orientation': quat}
+
+
+# ---------------------------------------------------------------------- 3R oracle
+def my_3r_ik(x, y, phi):
+    wx, wy = x - np.cos(phi), y - np.sin(phi)
+    t2 = np.arccos((wx**2 + wy**2 - 2.0) / 2.0)
+    t1 = np.arctan2(wy, wx) - np.arctan2(np.sin(t2), 1 + np.cos(t2))
+    return np.stack([t1, t2, phi - t1 - t2], axis=-1)
+
+
+def j_xyphi(q):
+    """Jacobian of (x, y, φ) for the unit-link planar 3R, (N, 3, 3)."""
+    t1, t12, t123 = q[:, 0], q[:, 0] + q[:, 1], q.sum(axis=1)
+    J = np.zeros((q.shape[0], 3, 3))
+    J[:, 0] = -np.stack([np.sin(t1) + np.sin(t12) + np.sin(t123), np.sin(t12) + np.sin(t123), np.sin(t123)], 1)
+    J[:, 1] = np.stack([np.cos(t1) + np.cos(t12) + np.cos(t123), np.cos(t12) + np.cos(t123), np.cos(t123)], 1)
+    J[:, 2] = 1.0
+    return J
+
+
+class Oracle3R:
+    """The exact geodesic of the paper's example: (x, y, φ) linear in s."""
+
+    def __init__(self, request_path):
+        with open(request_path, encoding='utf-8') as fh:
+            req = yaml.safe_load(fh)
+        a, b = req['start'], req['goal']
+        self.pa = np.array([a['position'][k] for k in 'xyz'])
+        self.pb = np.array([b['position'][k] for k in 'xyz'])
+        yaw = lambda o: 2 * np.arctan2(o['z'], o['w'])  # noqa: E731
+        self.phia, self.phib = yaw(a['orientation']), yaw(b['orientation'])
+        self.xi = np.array([*(self.pb - self.pa)[:2], self.phib - self.phia])
+
+    def pose(self, s):
+        return self.pa + s[:, None] * (self.pb - self.pa), self.phia + s * (self.phib - self.phia)
+
+    def q(self, s):
+        p, phi = self.pose(s)
+        return my_3r_ik(p[:, 0], p[:, 1], phi)
+
+    def dq(self, s):
+        return np.linalg.solve(j_xyphi(self.q(s)), np.broadcast_to(self.xi, (s.size, 3))[..., None])[..., 0]
+
+
+@pytest.fixture(scope='module')
+def paper_3r_json(tmp_path_factory):
+    out = tmp_path_factory.mktemp('cli') / 'paper_3r.json'
+    proc = run([os.path.join(EXAMPLES, 'paper_3r.yaml'), '--samples', 201, '--output', out], ROOT)
+    assert proc.returncode == 0, proc.stderr
+    assert 'ERROR' not in proc.stderr and 'Traceback' not in proc.stderr
+    with open(out, encoding='utf-8') as fh:
+        return json.load(fh)
+
+
+def test_paper_3r_json_layout(paper_3r_json):
+    d = paper_3r_json
+    assert KEYS <= set(d)
+    assert d['joint_names'] == ['joint1', 'joint2', 'joint3']
+    assert_allclose(d['s'], np.linspace(0, 1, 201), atol=1e-15)
+    for key in ('positions', 'velocities', 'accelerations', 'jerks', 'ee_positions'):
+        assert np.array(d[key]).shape == (201, 3), key
+    assert np.array(d['ee_orientations']).shape == (201, 4)
+    sol = d['solver']
+    assert {'status', 'iterations', 'max_residual', 'time_ms'} <= set(sol)
+    assert sol['status'] == 0 and isinstance(sol['iterations'], int) and sol['iterations'] >= 0
+    assert sol['method'] == 'pullback' and 0 < sol['path_error'] <= 1e-9
+    assert np.isfinite(sol['max_residual']) and sol['time_ms'] > 0
+
+
+def test_paper_3r_json_matches_exact_geodesic(paper_3r_json):
+    d = paper_3r_json
+    oracle = Oracle3R(os.path.join(EXAMPLES, 'paper_3r.yaml'))
+    s = np.array(d['s'])
+    q = np.array(d['positions'])
+    assert np.abs(q - oracle.q(s)).max() <= 1e-5
+    assert_allclose(q[0], [0.258, 0.583, -0.317], atol=6e-4)     # Table 2
+    assert_allclose(q[-1], [0.969, 0.380, -0.574], atol=6e-4)
+    p, phi = oracle.pose(s)
+    assert np.abs(np.array(d['ee_positions']) - p).max() <= 1e-6
+    quat = np.array(d['ee_orientations'])                         # (x, y, z, w) of a yaw φ
+    ref = np.stack([np.zeros_like(phi), np.zeros_like(phi), np.sin(phi / 2), np.cos(phi / 2)], axis=1)
+    assert np.abs(quat - ref).max() <= 1e-6
+    # derivatives w.r.t. s: q' = J⁻¹ ξ exactly; q'', q''' by differences of the exact q'
+    assert np.abs(np.array(d['velocities']) - oracle.dq(s)).max() <= 1e-5
+    h = 1e-4
+    ddq = (oracle.dq(s + h) - oracle.dq(s - h)) / (2 * h)
+    dddq = (oracle.dq(s + h) - 2 * oracle.dq(s) + oracle.dq(s - h)) / h**2
+    assert np.abs(np.array(d['accelerations']) - ddq).max() <= 1e-5 * max(1.0, np.abs(ddq).max())
+    assert np.abs(np.array(d['jerks']) - dddq).max() <= 1e-4 * max(1.0, np.abs(dddq).max())
+
+
+def test_stdout_mode_and_samples(tmp_path):
+    proc = run([os.path.join(EXAMPLES, 'paper_rrpp_joints.yaml'), '--samples', 5], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads(proc.stdout)
+    assert d['joint_names'] == ['theta1', 'theta2', 'd3', 'd4']
+    assert_allclose(d['s'], [0, 0.25, 0.5, 0.75, 1.0], atol=1e-15)
+    q = np.array(d['positions'])
+    assert_allclose(q[0], [0.123, -1.539, 0.276, -0.640], atol=1e-12)   # boundary conditions
+    assert_allclose(q[-1], [0.129, -1.629, 0.239, -0.643], atol=1e-12)
+    assert d['solver']['status'] == 0
+
+
+def test_urdf_robot_relative_to_request_and_via_point(tmp_path):
+    """A URDF next to the YAML; a via point placed so that the two pieces have equal length
+    (the junction is then at s = 0.5, a sample): the tool is exactly there."""
+    shutil.copy(KR6, tmp_path / 'arm.urdf')
+    q0 = np.array([0.0, -1.2, 1.0, 0.0, 0.8, 0.0])
+    fkb = U.arm_fk_batch(U.KR6)
+    T0 = fkb(q0[None])[0]
+    from scipy.spatial.transform import Rotation
+    quat = lambda T: dict(zip('xyzw', map(float, Rotation.from_matrix(T[:3, :3]).as_quat())))  # noqa: E731
+    p0 = T0[:3, 3]
+    p1, p2 = p0 + [0.1, 0.0, 0.0], p0 + [0.1, 0.1, 0.0]
+    req = {'robot': 'arm.urdf', 'start_joints': q0.tolist(),
+           'via': [pose(*map(float, p1), quat(T0))], 'goal': pose(*map(float, p2), quat(T0))}
+    (tmp_path / 'req.yaml').write_text(yaml.safe_dump(req))
+    proc = run(['req.yaml', '--samples', 101, '--output', 'out.json'], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads((tmp_path / 'out.json').read_text())
+    assert d['joint_names'] == U.KR6['joint_names']
+    ee = np.array(d['ee_positions'])
+    assert_allclose(ee[0], p0, atol=1e-9)
+    assert_allclose(ee[50], p1, atol=1e-9)
+    assert_allclose(ee[-1], p2, atol=1e-9)
+    assert np.abs(ee[:51, 1] - p0[1]).max() < 1e-6 and np.abs(ee[50:, 0] - p1[0]).max() < 1e-6
+    # the JSON's joints agree with the oracle FK of the JSON's own positions
+    assert_allclose(fkb(np.array(d['positions']))[:, :3, 3], ee, atol=1e-12)
+
+
+# ---------------------------------------------------------------------- failures
+A = pose(2.5, 1.5, 0.0, yaw_quat(np.pi / 6))
+B = pose(1.5, 2.5, 0.0, yaw_quat(0.7752))
+FAILURES = {
+    'nan_position': ({'robot': 'planar_3r', 'start': pose(float('nan'), 1.5, 0.0, yaw_quat(0.5)), 'goal': B},
+                     'NaN'),
+    'unreachable': ({'robot': 'planar_3r', 'start': A, 'goal': pose(5.0, 0.0, 0.0, yaw_quat(0.0))},
+                    'IK failed'),
+    'unknown_robot': ({'robot': 'kuka_kr1000', 'start': A, 'goal': B}, "unknown robot 'kuka_kr1000'"),
+    'missing_urdf': ({'robot': 'nowhere.urdf', 'start': A, 'goal': B}, 'cannot read URDF'),
+    'bad_quaternion': ({'robot': 'planar_3r', 'start': pose(2.5, 1.5, 0.0, {'z': 0.5, 'w': 0.5}), 'goal': B},
+                       'not normalised'),
+    'joint_count': ({'robot': 'planar_3r', 'start_joints': [0.1, 0.2], 'goal': B}, 'has 3 joints'),
+    'unknown_key': ({'robot': 'planar_3r', 'start': A, 'goal': B, 'speed': 3}, "unknown keys ['speed']"),
+    'singular_metric': ({'robot': 'planar_3r', 'metric': 'position', 'start': A, 'goal': B}, 'singular'),
+    'no_goal': ({'robot': 'planar_3r', 'start': A}, 'goal'),
+    'top_level_list': ([1, 2, 3], 'expected a mapping'),
+    'malformed_yaml': ('robot: [planar_3r\nstart: {position: {x: 1\n', 'malformed YAML'),
+    'missing_file': (None, 'cannot read request'),
+    'samples': ('samples', '--samples must be at least 2'),
+    'bad_urdf': ('bad_urdf', 'URDF: not valid XML'),
+}
+#: Run as real subprocesses of the console script (the rest in-process through plan_main, the
+#: same code path, to keep the suite fast on 2 cores).
+SUBPROCESS_CASES = ('nan_position', 'unreachable', 'unknown_robot', 'malformed_yaml', 'missing_file')
+
+
+def write_case(d, name):
+    content = FAILURES[name][0]
+    if content is None:
+        return ['does_not_exist.yaml']
+    if content == 'samples':
+        return [os.path.join(EXAMPLES, 'paper_3r.yaml'), '--samples', '1']
+    if content == 'bad_urdf':
+        (d / 'broken.urdf').write_text('<robot name="broken"><link name="a"></robot>')
+        content = {'robot': 'broken.urdf', 'start_joints': [0.0], 'goal_joints': [0.1]}
+    (d / f'{name}.yaml').write_text(content if isinstance(content, str) else yaml.safe_dump(content))
+    return [f'{name}.yaml']
+
+
+@pytest.fixture(scope='module')
+def failure_runs(tmp_path_factory):
+    """Run every failure case at once (separate processes), collect (returncode, stdout, stderr)."""
+    d = tmp_path_factory.mktemp('cli_fail')
+    cases = [(name, write_case(d, name)) for name in SUBPROCESS_CASES]
+    env = {**os.environ, 'OMP_NUM_THREADS': '1', 'OPENBLAS_NUM_THREADS': '1'}
+    out = {}
+    for k in range(0, len(cases), PARALLEL):  # a few at a time: the machine has 2 cores
+        batch = [(name, subprocess.Popen(COMMAND + args, cwd=d, env=env, stdout=subprocess.PIPE,
+                                         stderr=subprocess.PIPE, text=True))
+                 for name, args in cases[k:k + PARALLEL]]
+        for name, proc in batch:
+            try:
+                stdout, stderr = proc.communicate(timeout=TIMEOUT)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                stdout, stderr = proc.communicate()
+            out[name] = (proc.returncode, stdout, stderr)
+    return out
+
+
+def check_failure(name, code, stdout, stderr):
+    assert code not in (0, None), f'exit code {code}'
+    assert 'Traceback' not in stderr and 'Traceback' not in stdout
+    lines = [ln for ln in stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith('ERROR:'), lines[0]
+    assert FAILURES[name][1] in lines[0], lines[0]
+    assert stdout.strip() == ''
+
+
+@pytest.mark.parametrize('name', SUBPROCESS_CASES)
+def test_failure_prints_one_error_line(failure_runs, name):
+    check_failure(name, *failure_runs[name])
+
+
+@pytest.mark.parametrize('name', [n for n in FAILURES if n not in SUBPROCESS_CASES])
+def test_failure_prints_one_error_line_in_process(name, tmp_path, capsys, monkeypatch):
+    from geodesic_planner.cli.plan import plan_main
+    monkeypatch.chdir(tmp_path)
+    code = plan_main(write_case(tmp_path, name))
+    out = capsys.readouterr()
+    check_failure(name, code, out.out, out.err)
+
+
+def test_urdf_tip_link_from_request_in_process(tmp_path, capsys, monkeypatch):
+    """base_link/tip_link keys pick a chain out of a tree (test/data/branching.urdf, left branch:
+    p = (0.5 c1 + 0.3 c12, 0.5 s1 + 0.3 s12, 1))."""
+    from geodesic_planner.cli.plan import plan_main
+    shutil.copy(os.path.join(ROOT, 'test', 'data', 'branching.urdf'), tmp_path / 'tree.urdf')
+    req = {'robot': 'tree.urdf', 'tip_link': 'left_tool', 'start_joints': [0.2, 0.5], 'goal_joints': [0.6, 0.9]}
+    (tmp_path / 'req.yaml').write_text(yaml.safe_dump(req))
+    monkeypatch.chdir(tmp_path)
+    assert plan_main(['req.yaml', '--samples', '3']) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d['joint_names'] == ['j1', 'j_left']
+    q = np.array(d['positions'])
+    assert_allclose(q[[0, -1]], [[0.2, 0.5], [0.6, 0.9]], atol=1e-12)
+    q1, q12 = q[:, 0], q.sum(axis=1)
+    assert_allclose(d['ee_positions'], np.stack([0.5 * np.cos(q1) + 0.3 * np.cos(q12),
+                                                 0.5 * np.sin(q1) + 0.3 * np.sin(q12), np.ones(3)], 1),
+                    atol=1e-12)
+
+
+def test_unwritable_output_is_one_error_line(tmp_path, capsys):
+    from geodesic_planner.cli.plan import plan_main
+    code = plan_main([os.path.join(EXAMPLES, 'paper_rrpp_joints.yaml'), '--output', str(tmp_path)])
+    out = capsys.readouterr()
+    assert code != 0
+    lines = [ln for ln in out.err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith('ERROR:') and 'Traceback' not in out.err

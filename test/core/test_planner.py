@@ -1,0 +1,386 @@
+"""GeodesicPlanner: the public contract, bad inputs with precise errors, weighted metrics, and
+redundant (7-joint) arms with the default ε (issue 3 item 6: within 0.1 mm and 1 mrad of line +
+slerp on ordinary moves)."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+import urdf_util as U
+from geodesic_planner import GeodesicPlanner, load_robot
+from geodesic_planner.core.errors import GeodesicPlannerError, IKError, RequestError
+
+DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), 'geodesic_planner', 'data')
+IIWA = os.path.join(DATA, 'iiwa_like_7r.urdf')
+IIWA_HOME = np.array([0.2, 0.6, -0.1, -1.2, 0.1, 0.8, 0.3])
+
+
+def min_sv(robot):
+    return lambda q: np.linalg.svd(robot.jacobian(q), compute_uv=False)[-1]
+
+
+@pytest.fixture(scope='module')
+def ur5e():
+    robot = load_robot('ur5e')
+    return robot, GeodesicPlanner(robot)
+
+
+# ---------------------------------------------------------------------- contract
+def test_plan_contract(ur5e):
+    robot, planner = ur5e
+    q_a = robot.home + np.array([0.2, -0.2, 0.3, 0.1, 0.2, -0.1])
+    q_b = q_a + np.array([0.3, 0.1, -0.2, 0.2, 0.1, 0.3])
+    path = planner.plan(robot.fk(q_a), robot.fk(q_b), start_joints=q_a, goal_joints=q_b)
+    assert path.robot is robot
+    assert path.joint_names == robot.joint_names
+    assert_allclose(path.q_start, q_a, atol=0)   # joints win over poses
+    assert_allclose(path.q_goal, q_b, atol=0)
+    s = np.linspace(0, 1, 7)
+    out = path.evaluate(s)
+    assert len(out) == 4 and all(a.shape == (7, 6) for a in out)
+    assert_allclose(path.ee_poses(s), robot.fk(out[0]), atol=1e-15)
+    rep = path.solver
+    assert rep.status == 0 and isinstance(rep.message, str)
+    # a 6-joint arm on a reachable line: the pulled-back task geodesic, verified without a Newton step
+    assert rep.method == 'pullback' and rep.iterations == 0
+    assert 0 < rep.path_error <= planner.path_tolerance
+    assert rep.mesh_size >= 3 and rep.time_ms > 0 and np.isfinite(rep.max_residual)
+    assert set(rep.as_dict()) >= {'status', 'iterations', 'max_residual', 'time_ms', 'method', 'path_error'}
+    path2 = planner.plan_joints(q_a, q_b)
+    assert_allclose(path2.evaluate(s)[0], out[0], atol=1e-12)
+
+
+def test_planner_is_reusable_and_deterministic(ur5e):
+    robot, planner = ur5e
+    T_a = robot.fk(robot.home + 0.1)
+    T_b = robot.fk(robot.home - 0.1)
+    s = np.linspace(0, 1, 11)
+    q1 = planner.plan(T_a, T_b).evaluate(s)[0]
+    planner.plan(T_b, T_a)
+    q2 = planner.plan(T_a, T_b).evaluate(s)[0]
+    assert_allclose(q1, q2, atol=0)
+
+
+# ---------------------------------------------------------------------- bad inputs
+def _bad_rotation():
+    T = np.eye(4)
+    T[:3, :3] = [[1, 0.2, 0], [0, 1, 0], [0, 0, 1]]
+    T[:3, 3] = [0.3, 0.2, 0.4]
+    return T
+
+
+@pytest.mark.parametrize('kwargs, error, match', [
+    ({'start_joints': [0.0] * 5, 'goal_joints': [0.0] * 6}, RequestError,
+     r"start_joints: robot 'ur5e' has 6 joints .* got 5 values"),
+    ({'start_joints': [0.0] * 6, 'goal_joints': [0.0] * 7}, RequestError,
+     r"goal_joints: robot 'ur5e' has 6 joints .* got 7 values"),
+    ({'start_joints': [0.0, float('nan'), 0, 0, 0, 0], 'goal_joints': [0.0] * 6}, RequestError,
+     'start_joints: joint values contain NaN'),
+    ({'start_joints': [0.0] * 6, 'goal_joints': [0.0, 0, 0, float('inf'), 0, 0]}, RequestError,
+     'goal_joints: joint values contain NaN or inf'),
+    ({'start': _bad_rotation(), 'goal_joints': [0.0] * 6}, RequestError,
+     'start pose: rotation part is not a proper rotation'),
+    ({'start_joints': [0.0] * 6, 'goal': np.full((4, 4), np.nan)}, RequestError,
+     'goal pose: transform contains NaN'),
+    ({'start_joints': [0.0] * 6, 'goal': np.eye(3)}, RequestError,
+     r'goal pose: expected a 4x4 homogeneous transform'),
+    ({'goal_joints': [0.0] * 6}, RequestError, 'start: give a start pose or start_joints'),
+    ({'start_joints': [0.0] * 6}, RequestError, 'goal: give a goal pose or goal_joints'),
+])
+def test_bad_inputs_raise_precise_errors(ur5e, kwargs, error, match):
+    _, planner = ur5e
+    args = {'start': None, 'goal': None, **kwargs}
+    with pytest.raises(error, match=match):
+        planner.plan(args.pop('start'), args.pop('goal'), **args)
+
+
+def test_unreachable_goal_raises_ik_error(ur5e):
+    robot, planner = ur5e
+    T = robot.fk(robot.home)
+    far = T.copy()
+    far[:3, 3] = [1.5, 1.5, 1.5]
+    with pytest.raises(IKError, match=r"IK failed for robot 'ur5e'.*target position \[1\.5, 1\.5, 1\.5\]"):
+        planner.plan(T, far)
+    with pytest.raises(GeodesicPlannerError):  # one family for nodes/CLIs to catch
+        planner.plan(far, T)
+
+
+@pytest.mark.parametrize('kwargs, match', [
+    ({'metric': 'euclid'}, "unknown metric 'euclid'"),
+    ({'nodes': 2}, r'nodes must be in \[3, max_nodes\]'),
+    ({'nodes': 50, 'max_nodes': 20}, r'nodes must be in \[3, max_nodes\]'),
+    ({'position_weight': -1.0}, 'position_weight must be finite and >= 0'),
+])
+def test_bad_planner_options(kwargs, match):
+    with pytest.raises(RequestError, match=match):
+        GeodesicPlanner(load_robot('ur5e'), **kwargs)
+
+
+# ---------------------------------------------------------------------- weighted metric
+def test_weighted_metric_geodesic_is_still_line_and_slerp():
+    """wp² dp² + wo² ‖dR‖² is still a product of flat R³ and bi-invariant SO(3): line + slerp,
+    constant speed √(wp² |Δp|² + 2 wo² θ²)."""
+    robot = load_robot('ur5e')
+    wp, wo = 2.0, 0.4
+    planner = GeodesicPlanner(robot, position_weight=wp, orientation_weight=wo)
+    (q_a, T_a, T_b), = U.moderate_moves(U.ur5e_fk_batch, min_sv(robot), robot.home, robot.lower,
+                                        robot.upper, seed=51, n=1)
+    path = planner.plan(None, T_b, start_joints=q_a)
+    s = np.linspace(0, 1, 101)
+    q, dq, _, _ = path.evaluate(s)
+    q_oracle = U.continuation_ik(U.ur5e_fk_batch, U.line_slerp_oracle(T_a, T_b, s), q_a)
+    assert np.abs(q - q_oracle).max() <= 1e-5
+    Rrel = T_a[:3, :3].T @ T_b[:3, :3]
+    theta = np.arccos(np.clip((np.trace(Rrel) - 1) / 2, -1, 1))
+    exact = np.sqrt(wp**2 * np.sum((T_b[:3, 3] - T_a[:3, 3]) ** 2) + 2 * wo**2 * theta**2)
+    assert_allclose(path.metric_speed(s), exact, rtol=1e-6)
+
+
+# ---------------------------------------------------------------------- redundant arms
+REDUNDANT = {
+    'panda': (lambda: load_robot('panda'), U.panda_fk_batch, None),
+    'iiwa_like_7r_urdf': (lambda: load_robot(IIWA), U.arm_fk_batch(U.IIWA), IIWA_HOME),
+}
+
+
+@pytest.fixture(scope='module', params=list(REDUNDANT))
+def redundant(request):
+    make, fkb, home = REDUNDANT[request.param]
+    robot = make()
+    home = robot.home if home is None else home
+    moves = U.moderate_moves(fkb, min_sv(robot), home, robot.lower, robot.upper, seed=61, n=4)
+    return robot, fkb, moves
+
+
+def test_seven_joints_plan_near_line_and_slerp_with_default_epsilon(redundant):
+    robot, fkb, moves = redundant
+    planner = GeodesicPlanner(robot)
+    assert planner.metric.epsilon > 0
+    s = np.linspace(0, 1, 201)
+    for q_a, T_a, T_b in moves:
+        path = planner.plan(None, T_b, start_joints=q_a)
+        assert path.solver.status == 0
+        q = path.evaluate(s)[0]
+        # ends exact, the path within 0.1 mm and 1 mrad of line + slerp
+        assert np.abs(U.pose_residual(fkb(path.q_goal[None])[0], T_b)).max() < 1e-9
+        dp, dr = U.tool_deviation(fkb, q, T_a, T_b, s)
+        assert dp <= 1e-4 and dr <= 1e-3, (dp, dr)
+        assert robot.within_limits(q).all()
+        # a geodesic of G + εI: constant speed, ODE residual at the collocation tolerance
+        sp = path.metric_speed(s)
+        assert_allclose(sp, sp.mean(), rtol=1e-5)
+        _, _, a, _ = path.evaluate(s)
+        Ga = np.linalg.norm(np.einsum('nij,nj->ni', path.metric.tensor(robot, q), a), axis=1).max()
+        assert path.residual(s).max() < 50 * planner.tol * (1.0 + Ga)
+
+
+def test_seven_joint_default_tolerance_is_converged(redundant):
+    """No closed form with ε > 0: the default-tolerance solution agrees with a tight one."""
+    robot, fkb, moves = redundant
+    q_a, T_a, T_b = moves[0]
+    s = np.linspace(0, 1, 201)
+    q = GeodesicPlanner(robot).plan(None, T_b, start_joints=q_a).evaluate(s)[0]
+    tight = GeodesicPlanner(robot, tol=1e-9).plan(None, T_b, start_joints=q_a)
+    assert tight.solver.max_residual <= 1e-9
+    assert np.abs(q - tight.evaluate(s)[0]).max() <= 1e-5
+    assert np.abs(fkb(q)[:, :3, 3] - fkb(tight.evaluate(s)[0])[:, :3, 3]).max() <= 1e-6
+
+
+def test_seven_joints_poses_only(redundant):
+    robot, fkb, moves = redundant
+    planner = GeodesicPlanner(robot)
+    s = np.linspace(0, 1, 101)
+    for _, T_a, T_b in moves:
+        path = planner.plan(T_a, T_b)
+        q = path.evaluate(s)[0]
+        assert np.abs(U.pose_residual(fkb(q[[0, -1]]), np.stack([T_a, T_b]))).max() < 1e-9
+        dp, dr = U.tool_deviation(fkb, q, T_a, T_b, s)
+        assert dp <= 1e-4 and dr <= 1e-3, (dp, dr)
+
+
+def test_tool_deviation_shrinks_linearly_with_epsilon():
+    """The ε I term pulls the path off line + slerp by an amount ∝ ε (for small ε)."""
+    robot = load_robot('panda')
+    (q_a, T_a, T_b), = U.moderate_moves(U.panda_fk_batch, min_sv(robot), robot.home, robot.lower,
+                                        robot.upper, seed=62, n=1)
+    s = np.linspace(0, 1, 101)
+    dev = []
+    for eps in (1e-2, 1e-3, 1e-4):
+        path = GeodesicPlanner(robot, epsilon=eps).plan(None, T_b, start_joints=q_a)
+        dev.append(U.tool_deviation(U.panda_fk_batch, path.evaluate(s)[0], T_a, T_b, s)[0])
+    assert dev[0] > dev[1] > dev[2] > 0
+    assert 5 < dev[0] / dev[1] < 20 and 5 < dev[1] / dev[2] < 20, dev
+
+
+# ---------------------------------------------------------------------- singular ends, threads
+def test_singular_start_configuration_is_reported():
+    """UR5e with q5 = 0: wrist joints 4 and 6 aligned, J has rank 5, so the paper metric is
+    singular there; the error names the metric, the robot and where."""
+    robot = load_robot('ur5e')
+    q_a = np.array([0.1, -1.2, 1.3, -1.5, 0.0, 0.4])
+    from geodesic_planner.core.errors import SingularMetricError
+    match = r"metric paper .* is singular for robot 'ur5e' at the start q=\[0\.1, -1\.2, 1\.3, -1\.5, 0\.0, 0\.4\]"
+    with pytest.raises(SingularMetricError, match=match):
+        GeodesicPlanner(robot).plan_joints(q_a, q_a + 0.2)
+
+
+def test_shared_planner_across_threads_gives_sequential_results():
+    """One planner used by several threads at once (as the ROS node does) plans the same paths."""
+    from concurrent.futures import ThreadPoolExecutor
+    robot = load_robot('ur5e')
+    planner = GeodesicPlanner(robot)
+    rng = np.random.default_rng(71)
+    moves = [(robot.home + rng.uniform(-0.3, 0.3, 6), robot.home + rng.uniform(-0.3, 0.3, 6)) for _ in range(6)]
+    s = np.linspace(0, 1, 31)
+    sequential = [np.array(planner.plan_joints(a, b).evaluate(s)) for a, b in moves]
+    with ThreadPoolExecutor(4) as pool:
+        parallel = list(pool.map(lambda m: np.array(planner.plan_joints(*m).evaluate(s)), moves * 3))
+    for k, got in enumerate(parallel):
+        assert_allclose(got, sequential[k % len(moves)], atol=0, rtol=0)
+
+
+def test_urdf_arm_with_singular_home_plans_ordinary_move_from_poses():
+    """UR5e kinematics as a URDF with a base offset and a tool; the move is 0.10 m and 27 deg
+    (the ur5e preset, whose home is a regular configuration, plans the same move fine)."""
+    base = U.xyz_rpy((0.3, 0.1, 0.2), (0.1, 0.2, 0.3))
+    tool = U.xyz_rpy((0.0, 0.02, 0.1), (0.3, 0.0, 0.0))
+    from geodesic_planner.core.urdf import chain_from_urdf
+    urdf = chain_from_urdf(U.dh_to_urdf('ur5e_urdf', U.UR5E_DH, ['revolute'] * 6, base=base, tool=tool,
+                                        lower=[-6.28] * 6, upper=[6.28] * 6))
+    fkb = lambda qs: U.dh_fk_batched(U.UR5E_DH, ['revolute'] * 6, qs, base=base, tool=tool)  # noqa: E731
+    q_a = np.array([0.3737, -1.8888, 1.1868, -1.61, -1.8254, 0.3261])
+    q_b = np.array([0.4405, -1.5781, 0.7632, -1.4363, -1.9549, 0.8495])
+    T_a, T_b = fkb(np.stack([q_a, q_b]))
+    path = GeodesicPlanner(urdf).plan(T_a, T_b)
+    s = np.linspace(0, 1, 101)
+    dp, dr = U.tool_deviation(fkb, path.evaluate(s)[0], T_a, T_b, s)
+    assert dp < 1e-6 and dr < 1e-5
+
+
+# ---------------------------------------------------------------------- the pulled-back geodesic
+# On a non-redundant arm (epsilon = 0) whose line + slerp stays reachable, the geodesic is that
+# task-space geodesic pulled back by IK (NOTES.md §4): the planner verifies it at the mesh nodes
+# instead of running Newton iterations. These tests compare it with exact oracles.
+KR6 = os.path.join(DATA, 'kr6_like.urdf')
+
+
+def _line_move(robot, q0, dp, rotvec):
+    from geodesic_planner.core.transforms import so3_exp
+    T_a = robot.fk(q0)
+    T_b = T_a.copy()
+    T_b[:3, 3] += dp
+    T_b[:3, :3] = T_b[:3, :3] @ so3_exp(np.asarray(rotvec, dtype=float))
+    return T_a, T_b
+
+
+def _tool_error(path, T_a, T_b, samples=2001):
+    from geodesic_planner.core.transforms import line_slerp, pose_error
+    s = np.linspace(0.0, 1.0, samples)
+    dp, dr = pose_error(path.ee_poses(s), line_slerp(T_a, T_b, s))
+    return float(dp.max()), float(dr.max())
+
+
+PULLBACK_CASES = {
+    'ur5e': ('ur5e', [0.3, -1.2, 1.4, -1.5, -1.4, 0.2], [0.2, -0.1, 0.15], [0.0, 0.0, np.pi / 6]),
+    'kr6_like.urdf': (KR6, [0.2, -0.6, 0.9, 0.3, 0.8, -0.2], [0.1, 0.12, -0.08], [0.2, -0.1, 0.3]),
+    'kr6 long': (KR6, [0.2, -0.6, 0.9, 0.3, 0.8, -0.2], [0.25, 0.2, -0.1], [0.4, -0.3, 0.5]),
+}
+
+
+@pytest.mark.parametrize('case', sorted(PULLBACK_CASES))
+@pytest.mark.parametrize('path_tolerance', [1e-9, 1e-7])
+def test_pullback_path_within_path_tolerance_of_line_slerp(case, path_tolerance):
+    """The returned path stays within path_tolerance (m and rad, the metric's units) of the exact
+    geodesic's tool path, line + slerp at the same s, everywhere (not only at the nodes)."""
+    name, q0, dp, rot = PULLBACK_CASES[case]
+    robot = load_robot(name)
+    planner = GeodesicPlanner(robot, path_tolerance=path_tolerance)
+    T_a, T_b = _line_move(robot, np.array(q0), dp, rot)
+    path = planner.plan(T_a, T_b, start_joints=q0)
+    rep = path.solver
+    assert rep.method == 'pullback' and rep.iterations == 0 and rep.status == 0
+    assert rep.path_error <= path_tolerance
+    e_pos, e_rot = _tool_error(path, T_a, T_b)
+    assert e_pos <= path_tolerance + 1e-11 and e_rot <= path_tolerance + 1e-11, (e_pos, e_rot)
+    # the metric speed of a geodesic is constant
+    speed = path.metric_speed(np.linspace(0, 1, 501))
+    assert np.ptp(speed) <= 1e-6 * speed.mean()
+
+
+def test_pullback_mesh_follows_the_tolerance():
+    """A tighter path_tolerance refines the mesh; the paper's 3R (start near full stretch) needs it."""
+    from geodesic_planner.io.requests import load_request
+    req = load_request(os.path.join(os.path.dirname(DATA), os.pardir, 'msg_examples', 'paper_3r.yaml'))
+    loose = GeodesicPlanner(req.robot, path_tolerance=1e-6).plan(req.start, req.goal)
+    tight = GeodesicPlanner(req.robot, path_tolerance=1e-10).plan(req.start, req.goal)
+    assert loose.solver.method == tight.solver.method == 'pullback'
+    assert loose.solver.mesh_size < tight.solver.mesh_size
+    for path, tol in ((loose, 1e-6), (tight, 1e-10)):
+        e_pos, e_rot = _tool_error(path, req.start, req.goal)
+        assert e_pos <= tol + 1e-12 and e_rot <= tol + 1e-12, (tol, e_pos, e_rot)
+
+
+def test_interpolation_error_estimate_matches_the_true_midpoint_error():
+    """interpolation_error's estimate h²/24 (S'' - a) against the exact error at the midpoints (IK
+    of line + slerp there), measured in the metric."""
+    from geodesic_planner.core.geodesic import interpolation_error
+    from geodesic_planner.core.ik import gauss_newton_batch
+    from geodesic_planner.core.polynomials import QuinticHermite
+    from geodesic_planner.core.transforms import line_slerp
+    robot = load_robot(KR6)
+    planner = GeodesicPlanner(robot)
+    q0 = np.array([0.2, -0.6, 0.9, 0.3, 0.8, -0.2])
+    T_a, T_b = _line_move(robot, q0, [0.25, 0.2, -0.1], [0.4, -0.3, 0.5])
+    q_a, q_b, _, _ = planner.resolve_ends(T_a, T_b, start_joints=q0)
+    s = np.linspace(0.0, 1.0, 5)                      # coarse on purpose: errors of 1e-8..1e-6
+    q, v, exact = planner.initial_guess(q_a, q_b, s)
+    assert exact
+    a = planner.equations.acceleration(q, v)
+    est, _ = interpolation_error(planner.equations, s, q, v, a)
+    mid = 0.5 * (s[1:] + s[:-1])
+    q_mid_spline = QuinticHermite(s, q, v, a)(mid, order=0)[0]
+    q_mid_true, res, _, _ = gauss_newton_batch(robot, line_slerp(T_a, T_b, mid), q_mid_spline)
+    assert res.max() < 1e-12
+    e = q_mid_spline - q_mid_true
+    G = planner.metric.tensor(robot, q_mid_true)
+    true = np.sqrt(np.einsum('ni,nij,nj->n', e, G, e))
+    assert true.min() > 1e-10                          # a real error to estimate
+    assert_allclose(est, true, rtol=0.2)
+
+
+def test_pullback_path_is_the_collocation_solution():
+    """The verified pull-back and an independent solve_bvp run on the same ends agree."""
+    from geodesic_planner.core.geodesic import solve_geodesic_bvp
+    robot = load_robot('ur5e')
+    planner = GeodesicPlanner(robot)
+    q0 = np.array([0.3, -1.2, 1.4, -1.5, -1.4, 0.2])
+    T_a, T_b = _line_move(robot, q0, [0.2, -0.1, 0.15], [0.0, 0.0, np.pi / 6])
+    path = planner.plan(T_a, T_b, start_joints=q0)
+    assert path.solver.method == 'pullback'
+    s0 = np.linspace(0.0, 1.0, 11)
+    q_lin = q0 + s0[:, None] * (path.q_goal - q0)
+    s, q, _, _, rep = solve_geodesic_bvp(planner.equations, q0, path.q_goal, s0, q_lin,
+                                         np.broadcast_to(path.q_goal - q0, q_lin.shape), tol=1e-8)
+    assert rep.status == 0 and rep.iterations >= 1
+    assert_allclose(path.evaluate(s, order=0)[0], q, atol=1e-7)
+
+
+def test_redundant_or_unreachable_lines_fall_back_to_collocation():
+    """epsilon > 0 (7 joints) is not a pull-back: solve_bvp runs (Newton iterations >= 1)."""
+    robot = load_robot('panda')
+    planner = GeodesicPlanner(robot)
+    q0 = robot.home + np.array([0.1, 0.1, -0.1, 0.2, 0.1, -0.1, 0.1])
+    T_a, T_b = _line_move(robot, q0, [0.1, -0.1, 0.1], [0.0, 0.2, 0.2])
+    rep = planner.plan(T_a, T_b, start_joints=q0).solver
+    assert rep.method == 'collocation' and rep.iterations >= 1 and rep.max_residual <= planner.tol
+    assert np.isnan(rep.path_error)
+
+
+def test_path_tolerance_validated():
+    with pytest.raises(RequestError, match='path_tolerance must be a number > 0'):
+        GeodesicPlanner(load_robot('ur5e'), path_tolerance=0.0)
+    with pytest.raises(RequestError, match='path_tolerance'):
+        GeodesicPlanner(load_robot('ur5e'), path_tolerance=float('nan'))

@@ -1,0 +1,245 @@
+"""URDF chains: a DH chain written as URDF (fixed joints folded in, rpy origins, re-oriented joint
+axes, prismatic and continuous joints, base offset, tool) has the DH chain's FK; limits are read;
+the example URDFs under geodesic_planner/data match their DH tables; errors name their cause."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+import urdf_util as U
+from geodesic_planner import load_robot
+from geodesic_planner.core.errors import KinematicsError, RequestError
+from geodesic_planner.core.urdf import chain_from_urdf
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # test/
+DATA = os.path.join(os.path.dirname(HERE), 'geodesic_planner', 'data')
+BRANCHING = os.path.join(HERE, 'data', 'branching.urdf')
+PI = np.pi
+
+UR5E_DH = [(0.0, 0.1625, 0.0, PI / 2), (0.0, 0.0, -0.425, 0.0), (0.0, 0.0, -0.3922, 0.0),
+           (0.0, 0.1333, 0.0, PI / 2), (0.0, 0.0997, 0.0, -PI / 2), (0.0, 0.0996, 0.0, 0.0)]
+STANFORD_DH = [(0.0, 0.412, 0.0, -PI / 2), (0.0, 0.154, 0.0, PI / 2), (-PI / 2, 0.1, 0.0, 0.0),
+               (0.0, 0.0, 0.0, -PI / 2), (0.0, 0.0, 0.0, PI / 2), (0.0, 0.263, 0.0, 0.0)]
+STANFORD_KINDS = ['revolute', 'revolute', 'prismatic', 'revolute', 'revolute', 'revolute']
+# modified DH with two prismatic joints and angle offsets (RRPP-like, plus a wrist)
+MDH = [(0.0, 0.0, 0.3, 0.2), (0.9553, 1.0, 0.0, -0.4), (0.0, 0.0, 0.1, 0.0), (-PI / 2, 1.0, 0.2, PI),
+       (PI / 2, 0.05, 0.1, 0.3)]
+MDH_KINDS = ['revolute', 'revolute', 'prismatic', 'prismatic', 'revolute']
+
+
+def read(path: str) -> str:
+    with open(path, encoding='utf-8') as fh:
+        return fh.read()
+
+
+def check_fk(robot, rows, kinds, rng, *, modified=False, base=None, tool=None, n=12):
+    for q in rng.uniform(-1.5, 1.5, size=(n, len(rows))):
+        assert_allclose(robot.fk(q), U.dh_product(rows, kinds, q, modified=modified, base=base, tool=tool),
+                        atol=1e-13)
+
+
+# ---------------------------------------------------------------------- DH chains written as URDF
+def test_ur5e_as_urdf_with_base_offset_and_tool_matches_dh():
+    base = U.xyz_rpy((0.5, -0.25, 0.75), (0.2, -0.1, 2.0))
+    tool = U.xyz_rpy((0.0, 0.0, 0.15), (0.0, PI / 2, 0.0))
+    xml = U.dh_to_urdf('ur5e_urdf', UR5E_DH, ['revolute'] * 6, base=base, tool=tool, split=(0, 2, 4))
+    robot = chain_from_urdf(xml)
+    assert robot.dof == 6  # the fixed joints (base, DH splits, tool) are folded in
+    assert robot.joint_names == [f'joint{i}' for i in range(1, 7)]
+    assert (robot.base_link, robot.tip_link) == ('world', 'tool0')
+    check_fk(robot, UR5E_DH, ['revolute'] * 6, np.random.default_rng(1), base=base, tool=tool)
+
+
+@pytest.mark.parametrize('twist_seed', [3, 4, 5])
+def test_standard_dh_with_prismatic_and_continuous_and_reoriented_axes(twist_seed):
+    """Joint frames re-oriented by random rotations: general rpy origins and non-z axes."""
+    base = U.xyz_rpy((0.1, 0.2, 0.3), (0.3, -0.2, 1.0))
+    tool = U.xyz_rpy((0.01, 0.0, 0.1), (0.0, 0.5, 0.0))
+    xml = U.dh_to_urdf('mixed', STANFORD_DH, STANFORD_KINDS, continuous=(0, 5), split=(1, 3),
+                       twist_seed=twist_seed, base=base, tool=tool,
+                       lower=[-2.0, -1.5, -0.2, -3.0, -2.5, -9.0], upper=[2.0, 1.5, 0.7, 3.0, 2.5, 9.0],
+                       velocity=[1.0, 2.0, 0.3, 4.0, 5.0, 6.0])
+    assert 'type="continuous"' in xml and 'type="prismatic"' in xml
+    robot = chain_from_urdf(xml)
+    assert robot.joint_types == tuple(STANFORD_KINDS)
+    check_fk(robot, STANFORD_DH, STANFORD_KINDS, np.random.default_rng(twist_seed), base=base, tool=tool)
+    # limits: continuous joints are unlimited in position; the others are read from <limit>
+    assert_allclose(robot.lower, [-np.inf, -1.5, -0.2, -3.0, -2.5, -np.inf])
+    assert_allclose(robot.upper, [np.inf, 1.5, 0.7, 3.0, 2.5, np.inf])
+    assert_allclose(robot.max_velocity, [1.0, 2.0, 0.3, 4.0, 5.0, 6.0])
+    assert np.all(robot.max_acceleration > 0)
+
+
+def test_modified_dh_with_two_prismatic_joints_as_urdf():
+    base = U.xyz_rpy((-0.2, 0.0, 0.4), (PI, 0.0, 0.3))
+    tool = U.xyz_rpy((0.0, 0.0, 1.0), (PI, 0.0, -PI / 2))
+    xml = U.dh_to_urdf('mdh', MDH, MDH_KINDS, modified=True, base=base, tool=tool, split=(0, 3),
+                       twist_seed=11)
+    robot = chain_from_urdf(xml)
+    check_fk(robot, MDH, MDH_KINDS, np.random.default_rng(2), modified=True, base=base, tool=tool)
+
+
+def test_axis_is_normalised_and_sign_matters():
+    xml = U.dh_to_urdf('one', [(0.0, 0.1, 0.5, 0.0)], ['revolute'])
+    r1 = chain_from_urdf(xml)
+    r2 = chain_from_urdf(xml.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 2.5"/>'))
+    r3 = chain_from_urdf(xml.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 -1"/>'))
+    q = np.array([0.7])
+    assert_allclose(r2.fk(q), r1.fk(q), atol=1e-15)
+    assert_allclose(r3.fk(q), r1.fk(-q), atol=1e-15)
+
+
+def test_continuous_joint_without_limit_element():
+    xml = ('<robot name="r"><link name="a"/><link name="b"/>'
+           '<joint name="j" type="continuous"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/></joint></robot>')
+    robot = chain_from_urdf(xml)
+    assert robot.lower[0] == -np.inf and robot.upper[0] == np.inf
+    assert robot.max_velocity[0] > 0 and robot.max_acceleration[0] > 0
+    assert_allclose(robot.fk(np.array([0.3])), U.rz(0.3), atol=1e-15)
+
+
+def test_default_axis_is_x():
+    """URDF spec: a joint without <axis> rotates about x of its frame."""
+    xml = ('<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+           '<joint name="j" type="revolute"><parent link="a"/><child link="b"/>'
+           '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+           '<joint name="t" type="fixed"><parent link="b"/><child link="c"/><origin xyz="0 1 0"/></joint></robot>')
+    T = chain_from_urdf(xml).fk(np.array([0.5]))
+    assert_allclose(T[:3, 3], [0.0, np.cos(0.5), np.sin(0.5)], atol=1e-15)
+    assert_allclose(T[:3, :3], U.rx(0.5)[:3, :3], atol=1e-15)
+
+
+def test_sub_chain_between_named_links_composes():
+    """fk(world -> tool) = fk(world -> link3) · fk(link3 -> tool) with the joints split accordingly."""
+    xml = read(os.path.join(DATA, 'kr6_like.urdf'))
+    full = chain_from_urdf(xml)
+    upper = chain_from_urdf(xml, tip_link='link3')
+    lower = chain_from_urdf(xml, base_link='link3')
+    assert upper.joint_names == full.joint_names[:3] and lower.joint_names == full.joint_names[3:]
+    for q in np.random.default_rng(3).uniform(-1, 1, size=(5, 6)):
+        assert_allclose(full.fk(q), upper.fk(q[:3]) @ lower.fk(q[3:]), atol=1e-14)
+
+
+# ---------------------------------------------------------------------- example URDF files
+@pytest.mark.parametrize('key', list(U.EXAMPLE_ARMS))
+def test_example_urdf_files_match_their_dh_tables(key):
+    spec = U.EXAMPLE_ARMS[key]
+    path = os.path.join(DATA, f'{key}.urdf')
+    robot = load_robot(path)
+    assert robot.name == key
+    assert robot.joint_names == spec['joint_names']
+    assert (robot.base_link, robot.tip_link) == (spec['root_link'], spec['tip_link'])
+    assert_allclose(robot.lower, spec['lower'], rtol=1e-14)
+    assert_allclose(robot.upper, spec['upper'], rtol=1e-14)
+    assert_allclose(robot.max_velocity, spec['velocity'], rtol=1e-14)
+    assert robot.within_limits(robot.home)
+    xml = read(path)
+    assert xml.count('type="fixed"') >= 3 and 'rpy="0 0 0"' in xml
+    rng = np.random.default_rng(4)
+    for q in rng.uniform(robot.lower, robot.upper, size=(10, robot.dof)):
+        assert_allclose(robot.fk(q), U.arm_fk(spec, q), atol=1e-14)
+    # the base offset is really there: at q = 0 the first joint axis passes through the base origin
+    assert_allclose(robot.fk(np.zeros(robot.dof)), U.arm_fk(spec, np.zeros(robot.dof)), atol=1e-14)
+    assert not np.allclose(spec['base'], np.eye(4))
+    # the string API (robot_description) gives the same chain
+    assert_allclose(chain_from_urdf(xml).fk(q), robot.fk(q), atol=0)
+
+
+# ---------------------------------------------------------------------- trees, tip links, errors
+def test_branching_tree_needs_tip_link():
+    with pytest.raises(KinematicsError, match=r"not a serial chain: link 'base' has 2 children"):
+        load_robot(BRANCHING)
+    with pytest.raises(KinematicsError, match='set tip_link'):
+        chain_from_urdf(read(BRANCHING), base_link='link1')
+
+
+def test_branching_tree_left_branch_by_hand():
+    robot = load_robot(BRANCHING, tip_link='left_tool')
+    assert robot.joint_names == ['j1', 'j_left']
+    assert_allclose(robot.max_velocity, [2.0, 1.5])
+    for q1, q2 in np.random.default_rng(5).uniform(-2, 2, size=(8, 2)):
+        T = robot.fk(np.array([q1, q2]))
+        assert_allclose(T[:3, 3], [0.5 * np.cos(q1) + 0.3 * np.cos(q1 + q2),
+                                   0.5 * np.sin(q1) + 0.3 * np.sin(q1 + q2), 1.0], atol=1e-15)
+        assert_allclose(T[:3, :3], U.rz(q1 + q2)[:3, :3], atol=1e-15)
+
+
+def test_branching_tree_right_branch_prismatic_by_hand():
+    robot = load_robot(BRANCHING, tip_link='right_link')
+    assert robot.joint_types == ('revolute', 'prismatic')
+    assert_allclose([robot.lower[1], robot.upper[1], robot.max_velocity[1]], [-0.1, 0.4, 0.25])
+    for q1, d in [(0.3, 0.1), (-1.2, 0.35), (2.0, -0.05)]:
+        T = robot.fk(np.array([q1, d]))
+        assert_allclose(T[:3, 3], [-(0.2 + d) * np.sin(q1), (0.2 + d) * np.cos(q1), 1.0], atol=1e-15)
+
+
+def test_mimic_joint_on_the_chain_is_rejected():
+    with pytest.raises(KinematicsError, match=r"joint 'right_finger_joint' is a mimic joint"):
+        load_robot(BRANCHING, tip_link='right_finger')
+
+
+def test_floating_joint_on_the_chain_is_rejected_but_fine_elsewhere():
+    with pytest.raises(KinematicsError, match=r"joint 'camera_mount' has unsupported type 'floating'"):
+        load_robot(BRANCHING, tip_link='camera')
+    # the floating joint is on another branch: irrelevant to base -> left_tool
+    assert load_robot(BRANCHING, tip_link='left_tool').dof == 2
+
+
+def test_planar_joint_is_rejected():
+    xml = read(BRANCHING).replace('type="floating"', 'type="planar"')
+    with pytest.raises(KinematicsError, match="unsupported type 'planar'"):
+        chain_from_urdf(xml, tip_link='camera')
+
+
+@pytest.mark.parametrize('kwargs, match', [
+    ({'base_link': 'nope', 'tip_link': 'left_tool'}, "base_link 'nope' is not a link of 'two_branch'"),
+    ({'tip_link': 'nope'}, "tip_link 'nope' is not a link of 'two_branch'"),
+    ({'base_link': 'left_tool', 'tip_link': 'link1'}, "tip_link 'link1' is not below base_link 'left_tool'"),
+    ({'base_link': 'left_tip', 'tip_link': 'left_tool'}, "no actuated joint between 'left_tip' and 'left_tool'"),
+])
+def test_missing_or_misplaced_base_and_tip(kwargs, match):
+    with pytest.raises(KinematicsError, match=match):
+        chain_from_urdf(read(BRANCHING), **kwargs)
+
+
+GOOD = ('<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 1" rpy="0 0 0"/>'
+        '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
+
+
+@pytest.mark.parametrize('xml, match', [
+    (GOOD.replace('</robot>', ''), 'not valid XML'),
+    ('<robot name="r"><link name="a"></robot>', 'not valid XML'),
+    (GOOD.replace('<robot name="r">', '<model name="r">').replace('</robot>', '</model>'),
+     r'root element is <model>, expected <robot>'),
+    (GOOD.replace('<limit lower="-1" upper="1" effort="1" velocity="1"/>', ''),
+     r"joint 'j' \(revolute\) needs a <limit>"),
+    (GOOD.replace('xyz="0 0 1" rpy', 'xyz="0 1" rpy'), "joint 'j' origin xyz: expected 3 finite numbers"),
+    (GOOD.replace('rpy="0 0 0"', 'rpy="a b c"'), "joint 'j' origin rpy: not numbers"),
+    (GOOD.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 nan"/>'), "joint 'j' axis: expected 3 finite numbers"),
+    (GOOD.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>'), 'invalid axis'),
+    (GOOD.replace('<parent link="a"/>', ''), "joint 'j' lacks a parent or child link"),
+    (GOOD.replace('upper="1"', 'upper="x"'), r"joint 'j': bad <limit>"),
+    (GOOD.replace('upper="1"', 'upper="-2"'), 'lower limit > upper limit'),
+    (GOOD.replace('</robot>', '<link name="c"/></robot>'), r"expected one root link, found \['a', 'c'\]"),
+    (GOOD.replace('</robot>', '<link name="c"/><joint name="k" type="fixed"><parent link="c"/>'
+                  '<child link="b"/></joint></robot>'), "link 'b' has two parent joints"),
+    (GOOD.replace('type="revolute"', 'type="floating"'), "unsupported type 'floating'"),
+    (GOOD.replace('type="revolute"', 'type="fixed"'), "no actuated joint between 'a' and 'b'"),
+])
+def test_malformed_urdf_errors(xml, match):
+    chain_from_urdf(GOOD)  # the unmodified document is fine
+    with pytest.raises(KinematicsError, match=match):
+        chain_from_urdf(xml)
+
+
+def test_load_robot_urdf_file_errors(tmp_path):
+    bad = tmp_path / 'bad.urdf'
+    bad.write_text('<robot name="x"><link name="a"></robot>')
+    with pytest.raises(KinematicsError, match='not valid XML'):
+        load_robot(str(bad))
+    with pytest.raises(RequestError, match=r"cannot read URDF .*missing\.urdf"):
+        load_robot(str(tmp_path / 'missing.urdf'))

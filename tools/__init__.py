@@ -1,0 +1,1 @@
+"""Demo and test tooling (not part of the installed library)."""

@@ -1,0 +1,495 @@
+"""The main job: the paper's example through both ROS nodes, recorded, summarised and plotted.
+
+``python -m tools.demo [--output DIR] [--robot planar_3r] [--timeout S]``
+(normally through ``bash scripts/demo.sh``, which sets up the venv and the loopback-only network
+namespace). Steps:
+
+1. start ``geodesic_planner_node`` (``-p robot:=ROBOT``) and ``trajectory_processor_node``
+   (``-p velocity_scaling:=0.5 -p sample_period:=0.01 -p bag_path:=DIR/bag``) with Popen, each
+   in its own process group, output in ``DIR/logs/``;
+2. wait for ``/geodesic_planner/plan`` and for the processor's subscription;
+3. call the service (nav_msgs/srv/GetPlan) with the paper's planar 3R poses (for another robot:
+   from its home pose to the pose of home + 0.3 rad (or m) on every joint);
+4. receive the trajectory on ``/geodesic_planner/joint_trajectory`` and the processed one on
+   ``/trajectory_processor/joint_trajectory``;
+5. stop the processor with SIGINT (the bag is closed), then the planner;
+6. read both trajectories back from the bag (:func:`geodesic_planner.io.bag.read_trajectories`),
+   print a summary and write ``DIR/summary.json`` and ``DIR/trajectory.png``.
+
+A node that dies or a wait that times out prints the node's log tail and exits with 1.
+
+It is a ROS client, so it lives in ``geodesic_planner/ros/``; rclpy is imported inside
+:func:`run_demo`, so its pure helpers can be imported and tested without ROS.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import sysconfig
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tools import netns
+from geodesic_planner.core.errors import GeodesicPlannerError
+
+__all__ = ['DemoError', 'NodeProcess', 'main', 'paper_poses', 'run_demo', 'segment_deviation',
+           'trajectory_summary']
+
+PLAN_SERVICE = '/geodesic_planner/plan'
+PLANNED_TOPIC = '/geodesic_planner/joint_trajectory'
+PROCESSED_TOPIC = '/trajectory_processor/joint_trajectory'
+VELOCITY_SCALING = 0.5
+SAMPLE_PERIOD = 0.01
+
+
+class DemoError(GeodesicPlannerError):
+    """The demo could not complete (a node died, a wait timed out, a result is missing)."""
+
+
+# --------------------------------------------------------------------------- geometry (pure)
+
+def _yaw_pose(x: float, y: float, yaw: float) -> np.ndarray:
+    T = np.eye(4)
+    c, s = math.cos(yaw), math.sin(yaw)
+    T[:2, :2] = [[c, -s], [s, c]]
+    T[:2, 3] = [x, y]
+    return T
+
+
+def paper_poses() -> tuple[np.ndarray, np.ndarray]:
+    """Start and goal tool poses of the paper's planar 3R example (Table 1), 4x4, base frame, m.
+
+    Start p = (2.5, 1.5, 0), n = (0.866, 0.5, 0) (yaw 30 deg); goal p = (1.5, 2.5, 0),
+    n = (0.714, 0.7, 0) (yaw atan2(0.7, 0.714)).
+    """
+    return _yaw_pose(2.5, 1.5, math.radians(30.0)), _yaw_pose(1.5, 2.5, math.atan2(0.7, 0.714))
+
+
+def demo_poses(robot: Any) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN401
+    """Start/goal poses for ``robot``: the paper's for planar_3r, else fk(home) -> fk(home + 0.3)."""
+    if robot.name == 'planar_3r':
+        return paper_poses()
+    q0 = np.asarray(robot.home, dtype=float)
+    q1 = np.clip(q0 + 0.3, robot.lower, robot.upper)
+    return robot.fk(q0), robot.fk(q1)
+
+
+def segment_deviation(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance of each point to the segment [a, b].
+
+    Args:
+        points: shape (N, 3), m.
+        a, b: segment ends, shape (3,), m.
+
+    Returns:
+        Distances, shape (N,), m.
+    """
+    ab = b - a
+    denom = float(ab @ ab)
+    u = np.zeros(len(points)) if denom == 0.0 else np.clip((points - a) @ ab / denom, 0.0, 1.0)
+    return np.linalg.norm(points - (a + u[:, None] * ab), axis=1)
+
+
+def trajectory_summary(t: np.ndarray, q: np.ndarray, dq: np.ndarray | None, robot: Any,  # noqa: ANN401
+                       start: np.ndarray, goal: np.ndarray) -> dict[str, Any]:
+    """Numbers describing one timed trajectory.
+
+    Args:
+        t: times, shape (N,), s.
+        q: joint positions, shape (N, dof), robot joint order; rad or m.
+        dq: joint velocities, shape (N, dof), or None.
+        robot: the model (``fk``).
+        start, goal: requested tool poses, 4x4, base frame.
+
+    Returns:
+        points, duration (s), peak |velocity| per joint, tool-path deviation from the straight
+        segment start -> goal (m; max over the points), start/goal tool position errors (m).
+    """
+    tool = robot.fk(q)[:, :3, 3]
+    dev = segment_deviation(tool, start[:3, 3], goal[:3, 3])
+    peak = np.max(np.abs(dq), axis=0) if dq is not None and len(dq) else np.full(q.shape[1], np.nan)
+    return {
+        'points': int(len(t)),
+        'duration_s': float(t[-1] - t[0]) if len(t) > 1 else 0.0,
+        'peak_joint_speed': [float(v) for v in peak],
+        'max_tool_path_deviation_m': float(dev.max()),
+        'start_position_error_m': float(np.linalg.norm(tool[0] - start[:3, 3])),
+        'goal_position_error_m': float(np.linalg.norm(tool[-1] - goal[:3, 3])),
+    }
+
+
+# --------------------------------------------------------------------------- processes
+
+class NodeProcess:
+    """A node started in its own process group; output in a log file."""
+
+    def __init__(self, name: str, argv: list[str], log_path: Path, env: dict[str, str]) -> None:
+        self.name = name
+        self.argv = argv
+        self.log_path = log_path
+        log_path.parent.mkdir(parents=True, exist_ok=True)
+        with open(log_path, 'wb') as log:
+            group: dict[str, Any] = ({'process_group': 0} if sys.version_info >= (3, 11)
+                                     else {'start_new_session': True})
+            self.popen = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log,
+                                          stderr=subprocess.STDOUT, env=env, **group)
+
+    def alive(self) -> bool:
+        return self.popen.poll() is None
+
+    def log_text(self) -> str:
+        try:
+            return self.log_path.read_text(errors='replace')
+        except FileNotFoundError:
+            return ''
+
+    def log_tail(self, lines: int = 30) -> str:
+        return '\n'.join(self.log_text().splitlines()[-lines:])
+
+    def stop(self, timeout: float = 10.0) -> int:
+        """SIGINT, then SIGTERM, then SIGKILL to the group, ``timeout`` s apart; the exit code."""
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            if self.popen.poll() is not None:
+                break
+            try:
+                os.killpg(self.popen.pid, sig)
+            except ProcessLookupError:
+                break
+            try:
+                self.popen.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                continue
+        return self.popen.wait(timeout=timeout)
+
+
+def _start(name: str, executable: str, params: dict[str, str], log_dir: Path) -> NodeProcess:
+    path = Path(sysconfig.get_path('scripts')) / executable
+    if not path.exists():
+        raise DemoError(f'console script {path} not found: run bash scripts/setup_env.sh')
+    argv = [str(path), '--ros-args']
+    for key, value in params.items():
+        argv += ['-p', f'{key}:={value}']
+    env = dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0',
+               ROS_LOG_DIR=str(log_dir / 'ros'))
+    return NodeProcess(name, argv, log_dir / f'{name}.log', env)
+
+
+def _wait(predicate: Callable[[], Any], timeout: float, what: str, nodes: Sequence[NodeProcess]) -> Any:  # noqa: ANN401
+    deadline = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value:
+            return value
+        for node in nodes:
+            if not node.alive():
+                raise DemoError(f'{node.name} exited with {node.popen.returncode} while waiting '
+                                f'for {what}')
+        if time.monotonic() >= deadline:
+            raise DemoError(f'timed out after {timeout:g} s waiting for {what}')
+        time.sleep(0.02)
+
+
+# --------------------------------------------------------------------------- output
+
+@dataclass
+class _Series:
+    label: str
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray | None
+
+
+def _reorder(names: Sequence[str], robot_names: Sequence[str], a: np.ndarray | None) -> np.ndarray | None:
+    if a is None:
+        return None
+    missing = [n for n in robot_names if n not in names]
+    if missing:
+        raise DemoError(f'trajectory lacks joints {missing} (has {list(names)})')
+    return a[:, [list(names).index(n) for n in robot_names]]
+
+
+def plot(series: Sequence[_Series], joint_names: Sequence[str], path: Path, title: str) -> None:
+    """Joint positions and velocities vs time, one colour per joint, one line style per series."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+    styles = [dict(ls='none', marker='o', ms=3, alpha=0.6), dict(ls='-', lw=1.5)]
+    colours = plt.rcParams['axes.prop_cycle'].by_key()['color']
+    for k, s in enumerate(series):
+        for j, name in enumerate(joint_names):
+            c = colours[j % len(colours)]
+            step = max(1, len(s.t) // 80) if k == 0 else 1
+            axes[0].plot(s.t[::step], s.q[::step, j], color=c, label=f'{name} ({s.label})',
+                         **styles[k % 2])
+            if s.dq is not None:
+                axes[1].plot(s.t[::step], s.dq[::step, j], color=c, **styles[k % 2])
+    axes[0].set_ylabel('position (rad or m)')
+    axes[1].set_ylabel('velocity (rad/s or m/s)')
+    axes[1].set_xlabel('time from start (s)')
+    axes[0].legend(fontsize=7, ncol=2)
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _fmt_speeds(v: Sequence[float]) -> str:
+    return '[' + ', '.join(f'{x:.3f}' for x in v) + ']'
+
+
+# --------------------------------------------------------------------------- the pipeline
+
+def _prepare_output(out: Path) -> Path:
+    out.mkdir(parents=True, exist_ok=True)
+    bag = out / 'bag'
+    if bag.exists():
+        looks_like_bag = bag.is_dir() and ((bag / 'metadata.yaml').exists() or any(
+            p.suffix in ('.mcap', '.db3') for p in bag.iterdir()))
+        if not looks_like_bag and bag.is_dir() and any(bag.iterdir()):
+            raise DemoError(f'{bag} exists and is not a bag from an earlier run: remove it or '
+                            'choose another --output')
+        shutil.rmtree(bag) if bag.is_dir() else bag.unlink()
+    for old in ('summary.json', 'trajectory.png'):
+        (out / old).unlink(missing_ok=True)
+    return bag
+
+
+def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
+             say: Callable[[str], None] = print) -> dict[str, Any]:
+    """Run the whole pipeline (see the module docstring); return the summary written to JSON.
+
+    Raises:
+        DemoError: a node died, a wait timed out, or a result is missing/invalid.
+        GeodesicPlannerError: bad robot name, unreadable bag.
+    """
+    from geodesic_planner.core.robots import load_robot
+
+    robot = load_robot(robot_name)
+    start_T, goal_T = demo_poses(robot)
+    bag_dir = _prepare_output(output)
+    log_dir = output / 'logs'
+
+    import rclpy
+    from nav_msgs.srv import GetPlan
+    from rclpy.context import Context
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from trajectory_msgs.msg import JointTrajectory
+
+    from geodesic_planner.ros.conversions import joint_trajectory_to_arrays, matrix_to_pose_stamped
+    from geodesic_planner.ros.matching import logged_matches
+
+    nodes: list[NodeProcess] = []
+    context = Context()
+    executor = node = spinner = None
+    try:
+        say(f'starting planner node (geodesic_planner_node -p robot:={robot_name})...')
+        planner = _start('planner', 'geodesic_planner_node', {'robot': robot_name}, log_dir)
+        nodes.append(planner)
+        say(f'starting trajectory processor node (velocity_scaling {VELOCITY_SCALING}, '
+            f'sample_period {SAMPLE_PERIOD} s, bag {bag_dir})...')
+        processor = _start('processor', 'trajectory_processor_node',
+                           {'velocity_scaling': repr(VELOCITY_SCALING),
+                            'sample_period': repr(SAMPLE_PERIOD), 'bag_path': str(bag_dir)}, log_dir)
+        nodes.append(processor)
+
+        rclpy.init(context=context)
+        node = rclpy.create_node(f'geodesic_planner_demo_{os.getpid()}', context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+
+        def spin() -> None:
+            try:
+                executor.spin()
+            except ExternalShutdownException:
+                pass
+        spinner = threading.Thread(target=spin, name='demo-executor', daemon=True)
+        spinner.start()
+
+        qos = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+        received: dict[str, list[Any]] = {PLANNED_TOPIC: [], PROCESSED_TOPIC: []}
+        lock = threading.Lock()
+
+        def keeper(topic: str) -> Callable[[Any], None]:
+            def cb(msg: Any) -> None:  # noqa: ANN401
+                with lock:
+                    received[topic].append(msg)
+            return cb
+        subs = {topic: node.create_subscription(JointTrajectory, topic, keeper(topic), qos)
+                for topic in received}
+        client = node.create_client(GetPlan, PLAN_SERVICE)
+
+        t0 = time.monotonic()
+        _wait(client.service_is_ready, timeout, f'service {PLAN_SERVICE}', nodes)
+        say(f'planner ready: {PLAN_SERVICE} ({time.monotonic() - t0:.1f} s)')
+        # The processor subscribes to the planner's topic (ours is the other subscriber), and we
+        # must be matched with both publishers before asking: the topics are volatile.
+        _wait(lambda: node.count_subscribers(PLANNED_TOPIC) >= 2, timeout,
+              f"the processor's subscription to {PLANNED_TOPIC}", nodes)
+        for topic, sub in subs.items():
+            _wait(lambda s=sub: s.get_publisher_count() >= 1, timeout, f'a publisher on {topic}', nodes)
+        # ... and the publishers must have matched us (the writer side can lag behind the reader).
+        _wait(lambda: logged_matches(planner.log_text(), PLANNED_TOPIC) >= 2, timeout,
+              f"the planner's publisher on {PLANNED_TOPIC} matched with 2 subscriptions", nodes)
+        _wait(lambda: logged_matches(processor.log_text(), PROCESSED_TOPIC) >= 1, timeout,
+              f"the processor's publisher on {PROCESSED_TOPIC} matched with us", nodes)
+        say(f'processor ready: subscribed to {PLANNED_TOPIC}, publishing {PROCESSED_TOPIC}')
+
+        request = GetPlan.Request()
+        request.start = matrix_to_pose_stamped(start_T, '')
+        request.goal = matrix_to_pose_stamped(goal_T, '')
+        say('calling ' + PLAN_SERVICE + ': start p=' + np.array2string(start_T[:3, 3], precision=3)
+            + ', goal p=' + np.array2string(goal_T[:3, 3], precision=3))
+        t_call = time.monotonic()
+        future = client.call_async(request)
+        _wait(future.done, timeout, f'the response of {PLAN_SERVICE}', nodes)
+        latency_ms = (time.monotonic() - t_call) * 1e3
+        response = future.result()
+        if response is None or not response.plan.poses:
+            raise DemoError(f'the planner returned an empty plan (see its log: {planner.log_path})')
+
+        def first(topic: str) -> Any:  # noqa: ANN401
+            with lock:
+                return received[topic][0] if received[topic] else None
+        planned = _wait(lambda: first(PLANNED_TOPIC), timeout, f'a trajectory on {PLANNED_TOPIC}', nodes)
+        arr = joint_trajectory_to_arrays(planned)
+        say(f'plan received: {len(arr.t)} points, {arr.t[-1]:.3f} s '
+            f'(service answered in {latency_ms:.0f} ms, tool path {len(response.plan.poses)} poses)')
+        processed = _wait(lambda: first(PROCESSED_TOPIC), timeout,
+                          f'a trajectory on {PROCESSED_TOPIC}', nodes)
+        arr2 = joint_trajectory_to_arrays(processed)
+        say(f'processed trajectory received: {len(arr2.t)} points, {arr2.t[-1]:.3f} s')
+
+        say('stopping the processor (SIGINT, the bag is closed)...')
+        rc = processor.stop()
+        if rc != 0:
+            raise DemoError(f'the processor exited with {rc} on SIGINT')
+        say('stopping the planner (SIGINT)...')
+        rc = planner.stop()
+        if rc != 0:
+            raise DemoError(f'the planner exited with {rc} on SIGINT')
+    except BaseException as exc:
+        for proc in nodes:
+            if proc.alive():
+                proc.stop(timeout=5.0)
+        reason = 'interrupted' if isinstance(exc, KeyboardInterrupt) else f'{type(exc).__name__}: {exc}'
+        say(f'demo failed ({reason}); node logs:')
+        for proc in nodes:
+            tail = proc.log_tail()
+            say(f'--- {proc.name}: exit code {proc.popen.returncode}, log {proc.log_path} ---')
+            say(tail if tail else '(empty log)')
+        raise
+    finally:
+        if executor is not None:
+            executor.shutdown(timeout_sec=2.0)
+        if spinner is not None:
+            spinner.join(timeout=2.0)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+    return _summarise(bag_dir, output, robot, start_T, goal_T, latency_ms, say)
+
+
+def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # noqa: ANN401
+               goal_T: np.ndarray, latency_ms: float, say: Callable[[str], None]) -> dict[str, Any]:
+    from geodesic_planner.io.bag import read_trajectories
+
+    records = read_trajectories(bag_dir)
+    by_topic: dict[str, Any] = {}
+    for rec in records:
+        by_topic.setdefault(rec.topic, rec)
+    missing = [t for t in (PLANNED_TOPIC, PROCESSED_TOPIC) if t not in by_topic]
+    if missing:
+        raise DemoError(f'bag {bag_dir} holds no trajectory on {", ".join(missing)} '
+                        f'(topics: {", ".join(sorted(by_topic)) or "none"})')
+    say(f'bag read back: {len(records)} trajectories in {bag_dir}')
+
+    series, parts = [], {}
+    for key, topic, label in (('planned', PLANNED_TOPIC, 'planned'),
+                              ('processed', PROCESSED_TOPIC, f'processed x{VELOCITY_SCALING:g}')):
+        rec = by_topic[topic]
+        if rec.problems:
+            raise DemoError(f'invalid trajectory on {topic} in the bag: {"; ".join(rec.problems)}')
+        q = _reorder(rec.joint_names, robot.joint_names, rec.positions)
+        dq = _reorder(rec.joint_names, robot.joint_names, rec.velocities)
+        parts[key] = {'topic': topic, **trajectory_summary(rec.t, q, dq, robot, start_T, goal_T)}
+        series.append(_Series(label, rec.t, q, dq))
+
+    summary = {
+        'robot': robot.name,
+        'joint_names': list(robot.joint_names),
+        'start_pose': start_T.tolist(),
+        'goal_pose': goal_T.tolist(),
+        'velocity_scaling': VELOCITY_SCALING,
+        'sample_period_s': SAMPLE_PERIOD,
+        'service_latency_ms': latency_ms,
+        'bag': str(bag_dir),
+        **parts,
+    }
+    (output / 'summary.json').write_text(json.dumps(summary, indent=1) + '\n')
+    plot(series, robot.joint_names, output / 'trajectory.png',
+         f'{robot.name}: geodesic trajectory, planned and processed (from the bag)')
+
+    p, r = parts['planned'], parts['processed']
+    say('')
+    say(f'summary ({robot.name}, joints {", ".join(robot.joint_names)}):')
+    for name, part in (('planned  ', p), ('processed', r)):
+        say(f'  {name}: {part["points"]:5d} points, {part["duration_s"]:7.3f} s, peak joint speeds '
+            f'{_fmt_speeds(part["peak_joint_speed"])}, tool-path deviation from the line '
+            f'{part["max_tool_path_deviation_m"]:.2e} m')
+    say(f'  duration ratio processed/planned: {r["duration_s"] / p["duration_s"]:.4f} '
+        f'(1/velocity_scaling = {1 / VELOCITY_SCALING:g})')
+    say(f'  goal reached within {max(p["goal_position_error_m"], r["goal_position_error_m"]):.2e} m')
+    say(f'wrote {output / "summary.json"}, {output / "trajectory.png"}, bag {bag_dir}')
+    return summary
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m tools.demo``: returns the exit code (0 ok, 1 error)."""
+    parser = argparse.ArgumentParser(
+        prog='python -m tools.demo',
+        description='Plan the paper\'s example through the planner and processor nodes, record a '
+                    'bag, print a summary and write summary.json and trajectory.png.')
+    parser.add_argument('--output', default='out/demo', help='output directory (default out/demo)')
+    parser.add_argument('--robot', default='planar_3r',
+                        help='robot preset (default planar_3r: the paper\'s poses; others move '
+                             'from home to home + 0.3 on every joint)')
+    parser.add_argument('--timeout', type=float, default=60.0,
+                        help='deadline of each wait, s (default 60)')
+    args = parser.parse_args(argv)
+    problem = netns.isolation_problem()
+    if problem is not None:
+        print(f'ERROR: {problem}', file=sys.stderr)
+        return 1
+    try:
+        run_demo(Path(args.output), args.robot, args.timeout,
+                 say=lambda line: print(line, flush=True))
+    except GeodesicPlannerError as err:
+        print(f'ERROR: {err}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print('ERROR: interrupted', file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
