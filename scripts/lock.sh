@@ -5,7 +5,8 @@
 #
 # The lock holds every distribution that pip installed from a wheel (a *.dist-info directory),
 # pinned exactly, taken from `pip freeze --exclude-editable`. It leaves out:
-#   - the editable geodesic_planner itself (installed by setup_env.sh with --no-deps -e .);
+#   - the editable geodesic_planner itself (installed by setup_env.sh with --no-deps -e .) and the
+#     interface package that setup_env.sh builds from ./geodesic_planner_interfaces;
 #   - the *.egg-info metadata that the ros-* wheels carry inside them (rclpy==7.1.5, std_msgs==5.3.6,
 #     rosidl_parser==..., ...): pip freeze lists them, but they are parts of ros-* wheels, not
 #     distributions on PyPI, so installing them by name would fail or fetch something else.
@@ -34,6 +35,8 @@ for line in freeze:
     if not line or line.startswith('#') or line.startswith('-e'):
         continue
     name = line.split('==')[0]
+    if ' @ file://' in line:  # built here from a local directory (geodesic_planner_interfaces)
+        continue
     if '==' not in line:
         sys.exit(f'ERROR: unpinned line in pip freeze: {line}')
     if canon(name) in wheels and canon(name) != 'geodesic-planner':

@@ -5,9 +5,13 @@
 #   GP_VENV=DIR     venv location (default: .venv at the repository root; relative = from the root)
 #   GP_PYTHON=EXE   interpreter used to create the venv (default: python3.11, else python3 >= 3.10)
 #
-# Installs requirements/lock.txt (exact pins, ROS 2 Jazzy wheels included) and then the package
-# itself with `pip install --no-deps -e .`. A stamp file inside the venv records the sha256 of
-# lock.txt + setup.py: when it matches, the pip work is skipped (re-runs take well under a second).
+# Installs requirements/lock.txt (exact pins, ROS 2 Jazzy wheels included, with the CMake, ament and
+# rosidl build wheels), then the package itself with `pip install --no-deps -e .`, then builds the
+# interface package geodesic_planner_interfaces (ament_cmake + rosidl, ~15 s) into the venv with
+# `pip install --no-build-isolation` (scikit-build-core; see geodesic_planner_interfaces/pyproject.toml):
+# its files land where the ROS wheels put theirs, so the venv's python imports it with no environment.
+# A stamp file inside the venv records the sha256 of lock.txt, setup.py, pyproject.toml and the
+# interface package's sources: when it matches, all of this is skipped (re-runs take well under a second).
 # pip's output goes to a log file; on failure its tail is printed and the script exits non-zero.
 set -euo pipefail
 
@@ -36,7 +40,13 @@ pick_python() {
 }
 
 [ -f "$lock" ] || die "missing $lock"
-want="$(cat "$lock" "$root/setup.py" "$root/pyproject.toml" | sha256sum | cut -d' ' -f1)"
+interfaces="$root/geodesic_planner_interfaces"
+stamp_inputs() {  # every file whose change needs a new set-up, in a fixed order
+    printf '%s\n' "$lock" "$root/setup.py" "$root/pyproject.toml"
+    (cd "$interfaces" && find . -type f \( -name '*.msg' -o -name '*.srv' -o -name '*.txt' -o -name '*.xml' \
+        -o -name '*.cmake' -o -name '*.toml' \) -not -path './build/*' | LC_ALL=C sort | sed "s|^\.|$interfaces|")
+}
+want="$(stamp_inputs | while IFS= read -r f; do cat "$f"; done | sha256sum | cut -d" " -f1)"
 
 # Fast path: venv present, stamp matches.
 if [ -x "$venv/bin/python" ] && [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
@@ -77,6 +87,14 @@ say "installing pinned requirements into $venv (requirements/lock.txt)..."
 t0=$SECONDS
 run "$venv/bin/python" -m pip install --disable-pip-version-check -q -r "$lock"
 run "$venv/bin/python" -m pip install --disable-pip-version-check -q --no-deps -e "$root"
+say "building the interface package geodesic_planner_interfaces (rosidl, C and C++ compilers)..."
+command -v cc >/dev/null 2>&1 && command -v c++ >/dev/null 2>&1 ||
+    die "no C/C++ compiler (cc, c++) for the interface package: on Debian, apt-get install build-essential"
+# The ament index and CMake's package search both need the venv prefix at configure time; the pinned
+# cmake wheel is on PATH first. A build directory inside the venv makes re-builds incremental.
+run env PATH="$venv/bin:$PATH" AMENT_PREFIX_PATH="$venv" CMAKE_PREFIX_PATH="$venv" \
+    "$venv/bin/python" -m pip install --disable-pip-version-check -q --no-build-isolation --no-deps \
+    --config-settings=build-dir="$venv/.build/geodesic_planner_interfaces" "$interfaces"
 # Warn, but do not fail, on inconsistent dependencies (shows pip's own words).
 if ! "$venv/bin/python" -m pip check >>"$log" 2>&1; then
     say "warning: pip check reports problems:"

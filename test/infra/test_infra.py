@@ -402,9 +402,13 @@ def test_setup_env_stamp_skips_pip_and_failures_are_visible(tmp_path: Path) -> N
                     'echo "WARNING: Location \'file:///x\' is ignored: it is neither a file nor a directory."\n'
                     'echo "ERROR: No matching distribution found for ros-jazzy-rclpy==7.1.6"\nexit 1\n')
     fake.chmod(0o755)
-    want = hashlib.sha256((ROOT / 'requirements' / 'lock.txt').read_bytes()
-                          + (ROOT / 'setup.py').read_bytes()
-                          + (ROOT / 'pyproject.toml').read_bytes()).hexdigest()
+    interfaces = ROOT / 'geodesic_planner_interfaces'
+    sources = sorted((p for p in interfaces.rglob('*')
+                      if p.is_file() and p.suffix in {'.msg', '.srv', '.txt', '.xml', '.cmake', '.toml'}
+                      and 'build' not in p.relative_to(interfaces).parts),
+                     key=lambda p: str(p.relative_to(interfaces)).encode())
+    want = hashlib.sha256(b''.join(p.read_bytes() for p in [
+        ROOT / 'requirements' / 'lock.txt', ROOT / 'setup.py', ROOT / 'pyproject.toml', *sources])).hexdigest()
     env = {**os.environ, 'GP_VENV': str(venv)}
 
     (venv / '.geodesic_planner_stamp').write_text(want + '\n')
