@@ -135,6 +135,7 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
             vel = v if v > 0 else DEFAULT_MAX_VELOCITY
         elif jtype != 'continuous':
             raise KinematicsError(f'URDF: joint {jname!r} ({jtype}) needs a <limit> element')
+        lower, upper = _soft_limits(j.find('safety_controller'), jname, lower, upper)
         kind = PRISMATIC if jtype == 'prismatic' else REVOLUTE
         joints.append(Joint(jname, kind, axis, lower, upper, vel, DEFAULT_MAX_ACCELERATION))
         fixed.append(np.eye(4))
@@ -142,6 +143,27 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
         raise KinematicsError(f'URDF: no actuated joint between {base_link!r} and {tip_link!r}')
     chain = Chain(model, joints, fixed, base_link=base_link, tip_link=tip_link)
     return Chain(model, joints, fixed, base_link=base_link, tip_link=tip_link, home=regular_home(chain))
+
+
+def _soft_limits(safety: ET.Element | None, jname: str, lower: float, upper: float) -> tuple[float, float]:
+    """Position limits narrowed to a ``<safety_controller>``'s soft limits, as ros2_control does.
+
+    The soft limits are where the controller starts pushing back, so a plan must stay inside them.
+    """
+    if safety is None:
+        return lower, upper
+    try:
+        soft_lower = float(safety.get('soft_lower_limit', '-inf'))
+        soft_upper = float(safety.get('soft_upper_limit', 'inf'))
+    except ValueError as err:
+        raise KinematicsError(f'URDF: joint {jname!r}: bad <safety_controller> ({err})') from err
+    if np.isnan(soft_lower) or np.isnan(soft_upper):
+        raise KinematicsError(f'URDF: joint {jname!r}: <safety_controller> soft limits must not be NaN')
+    lo, hi = max(lower, soft_lower), min(upper, soft_upper)
+    if not lo < hi:
+        raise KinematicsError(f'URDF: joint {jname!r}: soft limits [{soft_lower:g}, {soft_upper:g}] leave no '
+                              f'room inside the limits [{lower:g}, {upper:g}]')
+    return lo, hi
 
 
 def regular_home(chain: Chain) -> np.ndarray:

@@ -243,3 +243,25 @@ def test_load_robot_urdf_file_errors(tmp_path):
         load_robot(str(bad))
     with pytest.raises(RequestError, match=r"cannot read URDF .*missing\.urdf"):
         load_robot(str(tmp_path / 'missing.urdf'))
+
+
+@pytest.mark.parametrize('safety, expected', [
+    ('<safety_controller soft_lower_limit="-0.5" soft_upper_limit="0.75" k_position="10" k_velocity="1"/>',
+     (-0.5, 0.75)),
+    ('<safety_controller soft_lower_limit="-2" soft_upper_limit="0.5" k_velocity="1"/>', (-1.0, 0.5)),
+    ('<safety_controller k_velocity="1"/>', (-1.0, 1.0)),
+    ('', (-1.0, 1.0)),
+])
+def test_safety_controller_soft_limits_narrow_the_position_limits(safety, expected):
+    robot = chain_from_urdf(GOOD.replace('</joint>', safety + '</joint>'))
+    assert (robot.lower[0], robot.upper[0]) == expected
+
+
+@pytest.mark.parametrize('safety, match', [
+    ('<safety_controller soft_lower_limit="0.9" soft_upper_limit="-0.9" k_velocity="1"/>', 'leave no room'),
+    ('<safety_controller soft_lower_limit="abc" k_velocity="1"/>', 'bad <safety_controller>'),
+    ('<safety_controller soft_upper_limit="nan" k_velocity="1"/>', 'NaN'),
+])
+def test_bad_soft_limits_are_refused(safety, match):
+    with pytest.raises(KinematicsError, match=match):
+        chain_from_urdf(GOOD.replace('</joint>', safety + '</joint>'))
