@@ -6,6 +6,7 @@ name or a URDF file. Units: m, rad; limits in rad/s (m/s) and rad/s^2 (m/s^2).
 from __future__ import annotations
 
 import os
+import stat
 from collections.abc import Callable
 
 import numpy as np
@@ -94,6 +95,35 @@ PRESETS: dict[str, Callable[[], Chain]] = {
 }
 
 
+def read_urdf_file(path: str) -> str:
+    """The text of a URDF file: a regular file (never a FIFO or device) of bounded size, UTF-8.
+
+    Raises:
+        RequestError: missing, unreadable, not a regular file, too large, or not UTF-8.
+    """
+    from .urdf import MAX_URDF_BYTES
+    shown = repr(path[:200])
+    try:
+        info = os.stat(path)
+        if not stat.S_ISREG(info.st_mode):
+            raise RequestError(f'robot: URDF {shown} is not a regular file')
+        if info.st_size > MAX_URDF_BYTES:
+            raise RequestError(f'robot: URDF {shown} has {info.st_size} bytes, more than {MAX_URDF_BYTES}')
+        # O_NONBLOCK: should the path become a FIFO after the check, open() still returns at once.
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        with os.fdopen(fd, 'rb') as fh:
+            data = fh.read(MAX_URDF_BYTES + 1)
+    except (OSError, ValueError) as err:  # ValueError: a NUL byte in the path
+        why = getattr(err, 'strerror', None) or str(err)
+        raise RequestError(f'robot: cannot read URDF {shown}: {why}') from err
+    if len(data) > MAX_URDF_BYTES:
+        raise RequestError(f'robot: URDF {shown} has more than {MAX_URDF_BYTES} bytes')
+    try:
+        return data.decode('utf-8')
+    except UnicodeDecodeError as err:
+        raise RequestError(f'robot: URDF {shown} is not UTF-8 text ({err.reason} at byte {err.start})') from err
+
+
 def load_robot(name_or_path: str, *, base_link: str | None = None, tip_link: str | None = None) -> Chain:
     """A robot model from a preset name (``planar_3r``, ``rrpp``, ``ur5e``, ``panda``) or a URDF file.
 
@@ -114,13 +144,7 @@ def load_robot(name_or_path: str, *, base_link: str | None = None, tip_link: str
         return PRESETS[name_or_path]()
     if name_or_path.endswith('.urdf') or os.sep in name_or_path:
         from .urdf import chain_from_urdf
-        try:
-            with open(name_or_path, encoding='utf-8') as fh:
-                text = fh.read()
-        except (OSError, ValueError) as err:
-            why = getattr(err, 'strerror', None) or str(err)
-            raise RequestError(f'robot: cannot read URDF {name_or_path!r}: {why}') from err
-        return chain_from_urdf(text, base_link=base_link, tip_link=tip_link)
+        return chain_from_urdf(read_urdf_file(name_or_path), base_link=base_link, tip_link=tip_link)
     raise RequestError(
         f'robot: unknown robot {name_or_path!r}; presets are {sorted(PRESETS)}, or give a .urdf path')
 

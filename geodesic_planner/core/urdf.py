@@ -2,6 +2,10 @@
 
 Supported joint types: revolute, continuous (revolute without position limits), prismatic, fixed.
 Anything else on the chain (floating, planar, mimic joints) is rejected with a clear error.
+
+Reading is bounded for any input: at most :data:`MAX_URDF_BYTES` of text and :data:`MAX_ELEMENTS`
+links and joints, no DOCTYPE (so no entity expansion), and the link graph is checked to be a tree
+(no link with two parents, no cycle) before it is walked.
 """
 from __future__ import annotations
 
@@ -11,6 +15,11 @@ import numpy as np
 
 from .errors import KinematicsError
 from .kinematics import DEFAULT_MAX_ACCELERATION, DEFAULT_MAX_VELOCITY, PRISMATIC, REVOLUTE, Chain, Joint
+
+#: Largest URDF accepted, bytes of text (real robot descriptions are well under 1 MB).
+MAX_URDF_BYTES = 10_000_000
+#: Largest number of links plus joints accepted.
+MAX_ELEMENTS = 20_000
 
 
 def _floats(text: str | None, n: int, default: list[float], what: str) -> np.ndarray:
@@ -40,6 +49,27 @@ def origin_transform(xyz: np.ndarray, rpy: np.ndarray) -> np.ndarray:
     return T
 
 
+def _check_acyclic(joints_by_child: dict[str, ET.Element]) -> None:
+    """Every link reaches a root by walking up parent joints (each link has at most one parent).
+
+    Raises:
+        KinematicsError: naming a link on a cycle.
+    """
+    state: dict[str, int] = {}  # 1: on the current walk, 2: known to reach a root
+    for start in joints_by_child:
+        walk = []
+        link: str | None = start
+        while link is not None and state.get(link) != 2:
+            if state.get(link) == 1:
+                raise KinematicsError(f'URDF: the links form a cycle through {link!r} (a URDF must be a tree)')
+            state[link] = 1
+            walk.append(link)
+            joint = joints_by_child.get(link)
+            link = joint.find('parent').get('link') if joint is not None else None  # type: ignore[union-attr]
+        for visited in walk:
+            state[visited] = 2
+
+
 def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None = None,
                     name: str | None = None) -> Chain:
     """Chain from URDF text (e.g. the robot_description parameter).
@@ -53,6 +83,12 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
         KinematicsError: malformed XML, no path base->tip, a branching tree without tip_link,
             unsupported joint types on the chain, missing limits on a revolute/prismatic joint.
     """
+    if not isinstance(xml, str):
+        raise KinematicsError(f'URDF: expected text, got {type(xml).__name__}')
+    if len(xml) > MAX_URDF_BYTES:
+        raise KinematicsError(f'URDF: {len(xml)} characters, more than the {MAX_URDF_BYTES} accepted')
+    if '<!DOCTYPE' in xml or '<!ENTITY' in xml:
+        raise KinematicsError('URDF: a DOCTYPE or entity declaration is not accepted')
     try:
         root = ET.fromstring(xml)
     except ET.ParseError as err:
@@ -60,6 +96,9 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
     if root.tag != 'robot':
         raise KinematicsError(f'URDF: root element is <{root.tag}>, expected <robot>')
     model = name or root.get('name', 'urdf_robot')
+    n_elements = len(root.findall('link')) + len(root.findall('joint'))
+    if n_elements > MAX_ELEMENTS:
+        raise KinematicsError(f'URDF: {n_elements} links and joints, more than the {MAX_ELEMENTS} accepted')
     links = [lk.get('name') for lk in root.findall('link')]
     joints_by_child: dict[str, ET.Element] = {}
     children: dict[str, list[str]] = {lk: [] for lk in links if lk}
@@ -74,6 +113,7 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
         joints_by_child[c] = j
         children.setdefault(p, []).append(c)
         children.setdefault(c, [])
+    _check_acyclic(joints_by_child)
     roots = [lk for lk in children if lk not in joints_by_child]
     if base_link is None:
         if len(roots) != 1:
@@ -132,6 +172,9 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
                 v = float(lim.get('velocity', DEFAULT_MAX_VELOCITY))
             except ValueError as err:
                 raise KinematicsError(f'URDF: joint {jname!r}: bad <limit> ({err})') from err
+            if not (np.isfinite(v) and (jtype == 'continuous' or (np.isfinite(lower) and np.isfinite(upper)))):
+                raise KinematicsError(f'URDF: joint {jname!r}: <limit> values must be finite '
+                                      f'(lower {lower:g}, upper {upper:g}, velocity {v:g})')
             vel = v if v > 0 else DEFAULT_MAX_VELOCITY
         elif jtype != 'continuous':
             raise KinematicsError(f'URDF: joint {jname!r} ({jtype}) needs a <limit> element')

@@ -7,6 +7,8 @@ import os
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 import urdf_util as U
@@ -265,3 +267,87 @@ def test_safety_controller_soft_limits_narrow_the_position_limits(safety, expect
 def test_bad_soft_limits_are_refused(safety, match):
     with pytest.raises(KinematicsError, match=match):
         chain_from_urdf(GOOD.replace('</joint>', safety + '</joint>'))
+
+
+# ---------------------------------------------------------------------------------- hostile sources
+
+def _graph_urdf(edges, extra_links=()):
+    """A URDF whose revolute joints connect (parent, child) link pairs."""
+    links = sorted({x for e in edges for x in e} | set(extra_links))
+    body = ''.join(f'<link name="{lk}"/>' for lk in links)
+    body += ''.join(f'<joint name="j{i}" type="revolute"><parent link="{p}"/><child link="{c}"/>'
+                    f'<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+                    for i, (p, c) in enumerate(edges))
+    return f'<robot name="g">{body}</robot>'
+
+
+@pytest.mark.timeout(20)
+@pytest.mark.parametrize('edges, kwargs', [
+    ([('a', 'b'), ('b', 'a')], {}),
+    ([('a', 'b'), ('b', 'a')], {'base_link': 'a'}),
+    ([('r', 's'), ('a', 'b'), ('b', 'c'), ('c', 'a')], {'base_link': 'r', 'tip_link': 'b'}),
+    ([('r', 's'), ('a', 'b'), ('b', 'c'), ('c', 'a')], {'base_link': 'a'}),
+    ([('a', 'a')], {}),
+])
+def test_cycles_are_refused_at_once(edges, kwargs):
+    with pytest.raises(KinematicsError, match='cycle'):
+        chain_from_urdf(_graph_urdf(edges), **kwargs)
+
+
+def test_disconnected_tip_is_refused():
+    with pytest.raises(KinematicsError, match='not below base_link'):
+        chain_from_urdf(_graph_urdf([('a', 'b'), ('x', 'y')]), base_link='a', tip_link='y')
+    with pytest.raises(KinematicsError, match='one root link'):
+        chain_from_urdf(_graph_urdf([('a', 'b'), ('x', 'y')]))
+
+
+@settings(max_examples=150, deadline=2000)
+@given(parents=st.lists(st.integers(min_value=-1, max_value=11), min_size=1, max_size=12),
+       base=st.integers(min_value=0, max_value=11), tip=st.integers(min_value=0, max_value=11))
+def test_any_link_graph_gives_a_chain_or_one_clear_error(parents, base, tip):
+    """Link i hangs below link parents[i] (-1: none): trees, forests, cycles, self-loops."""
+    edges = [(f'l{p}', f'l{i}') for i, p in enumerate(parents) if p >= 0]
+    xml = _graph_urdf(edges, extra_links=[f'l{i}' for i in range(len(parents))])
+    try:
+        chain = chain_from_urdf(xml, base_link=f'l{base}', tip_link=f'l{tip}')
+    except KinematicsError as err:
+        assert str(err).startswith('URDF: ')
+    else:
+        assert 1 <= chain.dof <= len(parents)
+
+
+@pytest.mark.parametrize('xml, match', [
+    ('<!DOCTYPE r [<!ENTITY a "aaaaaaaaaa">]><robot name="r">&a;</robot>', 'DOCTYPE'),
+    ('<robot name="r">' + '<link name="x"/>' * 20_001 + '</robot>', 'more than the 20000'),
+    (GOOD.replace('velocity="1"', 'velocity="inf"'), 'must be finite'),
+    (GOOD.replace('lower="-1"', 'lower="nan"'), 'must be finite'),
+])
+def test_hostile_documents_are_refused(xml, match):
+    with pytest.raises(KinematicsError, match=match):
+        chain_from_urdf(xml)
+
+
+def test_oversized_text_is_refused_before_parsing(monkeypatch):
+    import geodesic_planner.core.urdf as urdf_module
+    monkeypatch.setattr(urdf_module, 'MAX_URDF_BYTES', 1000)
+    with pytest.raises(KinematicsError, match='more than the 1000'):
+        chain_from_urdf(GOOD + ' ' * 1000)
+
+
+@pytest.mark.timeout(20)
+def test_model_files_must_be_regular_bounded_utf8(tmp_path):
+    fifo = tmp_path / 'arm.urdf'
+    os.mkfifo(fifo)                                   # opening it for reading would block
+    with pytest.raises(RequestError, match='not a regular file'):
+        load_robot(str(fifo))
+    with pytest.raises(RequestError, match='not a regular file'):
+        load_robot('/dev/zero')                       # endless: never read
+    with pytest.raises(RequestError, match='not a regular file'):
+        load_robot(str(tmp_path) + os.sep)
+    latin = tmp_path / 'latin.urdf'
+    latin.write_bytes(GOOD.replace('name="r"', 'name="r\xe9"').encode('latin-1'))
+    with pytest.raises(RequestError, match='not UTF-8'):
+        load_robot(str(latin))
+    good = tmp_path / 'good.urdf'
+    good.write_text(GOOD)
+    assert load_robot(str(good)).dof == 1
