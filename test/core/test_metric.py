@@ -6,14 +6,15 @@ import os
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
-
 import urdf_util as U
+from numpy.testing import assert_allclose
+from planning_checks import Q3_A, Q3_B, expect_error
+
 from geodesic_planner import GeodesicPlanner, load_robot
 from geodesic_planner.core.errors import RequestError, SingularMetricError
 from geodesic_planner.core.metric import Metric
 
-DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), 'geodesic_planner', 'data')
+DATA = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..', 'geodesic_planner', 'data'))
 ROBOTS = ['planar_3r', 'rrpp', 'ur5e', 'panda', os.path.join(DATA, 'kr6_like.urdf'),
           os.path.join(DATA, 'iiwa_like_7r.urdf')]
 
@@ -151,7 +152,7 @@ def test_planner_with_traditional_metric_on_planar_3r_raises():
 
 def test_paper_metric_of_planar_3r_is_singular_when_stretched():
     """G = J_xyφᵀ diag(1, 1, 2) J_xyφ and det J_xyφ = l1 l2 sin θ2: singular at θ2 = 0 too."""
-    with pytest.raises(SingularMetricError, match='singular.*q=\\[0.4, 0.0, 0.1\\]'):
+    with pytest.raises(SingularMetricError, match=r'singular.*q=\[0.4, 0.0, 0.1\]'):
         Metric().check_regular(load_robot('planar_3r'), np.array([0.4, 0.0, 0.1]))
 
 
@@ -168,3 +169,10 @@ def test_seven_joints_need_epsilon():
     Metric(epsilon=1e-3).check_regular(robot, q)
     with pytest.raises(SingularMetricError, match='singular'):
         GeodesicPlanner(robot, epsilon=0.0).plan(None, None, start_joints=q, goal_joints=q + 0.1)
+
+
+# Deterministic regressions found by the fuzzer (test_fuzz.py): exception type and cause.
+def test_regression_position_metric_is_singular() -> None:
+    planner = GeodesicPlanner(load_robot('planar_3r'), metric='position')
+    expect_error('regression', lambda: planner.plan(None, None, Q3_A, Q3_B), SingularMetricError,
+                 r'singular .* at the start .*traditional dp² metric has rank <= 3')
