@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""Benchmark of GeodesicPlanner.plan against baselines measured in the same run (issue 6).
+"""Benchmark of GeodesicPlanner.plan against baselines measured in the same run.
 
 Run:  .venv/bin/python benchmarks/run.py [--repeats 30] [--quick] [--markdown docs/benchmarks.md]
 
 Per case it prints plan time (median and p90 over repeated runs after warm-up, wall clock and this
 thread's CPU time), solver iterations, mesh size and accuracy: the tool-path error against the
-exact oracle (line + slerp at the same s, NOTES.md §4) where one exists, else the geodesic ODE
+exact oracle (line + slerp at the same s, docs/maths.md#oracles) where one exists, else the geodesic ODE
 residual. Baselines timed beside it: a plain numpy prototype of the same BVP (solve_bvp with a
 finite-difference Jacobian, 30 nodes, tol 1e-6, joint-space linear guess), the naive eq. (4)
 version (Christoffel symbols from finite differences of G, per-node loop), and Cartesian

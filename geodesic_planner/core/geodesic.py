@@ -1,4 +1,4 @@
-"""The geodesic equations of the metric and their analytic Jacobians (NOTES.md §1).
+"""The geodesic equations of the metric and their analytic Jacobians (docs/maths.md#geodesic-equations).
 
 For the pull-back metric ``G = Jᵀ Ω J (+ ε I)`` the geodesic equations (paper eq. 3-4) read
 

@@ -4,7 +4,7 @@
 2. The task-space geodesic (straight line + slerp) pulled back by batched IK at the mesh nodes
    (closed form where the robot has one, else Gauss-Newton), with q' from the task velocity.
 3. When that pull-back is exact at every node and ε = 0 (6-joint arms, the planar 3R, any arm
-   whose line + slerp stays reachable), it *is* the geodesic (NOTES.md §4): the geodesic
+   whose line + slerp stays reachable), it *is* the geodesic (docs/maths.md#oracles): the geodesic
    equations give q'' at the nodes, and the mesh is refined until the quintic Hermite path
    through (q, q', q'') is within ``path_tolerance`` of the geodesic between the nodes
    (``geodesic.interpolation_error``). No Newton step is needed: method 'pullback'.

@@ -1,4 +1,4 @@
-"""Property-based fuzzing of the core library (issue 7, item 1).
+"""Property-based fuzzing of the core library.
 
 Every call of the public planning API with random or hostile input must either
 

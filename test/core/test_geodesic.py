@@ -1,4 +1,4 @@
-"""Geodesics against exact oracles (NOTES.md §4).
+"""Geodesics against exact oracles (docs/maths.md#oracles).
 
 * The geodesic equations: ∂a/∂q, ∂a/∂q' against finite differences; a = q'' against the
   Christoffel-symbol form of eq. (4) built here from finite differences of G; task-space
@@ -35,7 +35,7 @@ IIWA = os.path.join(DATA, 'iiwa_like_7r.urdf')
 PAPER_3R = os.path.join(ROOT, 'msg_examples', 'paper_3r.yaml')
 RRPP_A = np.array([0.123, -1.539, 0.276, -0.640])
 RRPP_B = np.array([0.129, -1.629, 0.239, -0.643])
-#: Acceptance of issue 2: joint path to 1e-5 rad, tool path to 1e-6 m (and rad).
+#: Required accuracy against the exact oracle: joint path to 1e-5 rad, tool path to 1e-6 m (and rad).
 JOINT_TOL, TOOL_TOL = 1e-5, 1e-6
 
 
@@ -199,7 +199,7 @@ def test_3r_geodesic_is_the_straight_line_with_linear_phi(paper_3r):
     # joint path against the closed-form IK along the line
     q_oracle = my_3r_ik(p_line[:, 0], p_line[:, 1], phi_line)
     assert np.abs(q - q_oracle).max() <= JOINT_TOL
-    # tool path: FK written here (NOTES §3)
+    # tool path: FK written here (docs/maths.md#robots)
     t1, t12, t123 = q[:, 0], q[:, 0] + q[:, 1], q.sum(axis=1)
     x = np.cos(t1) + np.cos(t12) + np.cos(t123)
     y = np.sin(t1) + np.sin(t12) + np.sin(t123)
@@ -397,7 +397,7 @@ def test_rrpp_energy_is_stationary(rrpp_path):
 
 
 def test_rrpp_tool_path_bows_off_the_chord(rrpp_path):
-    """NOTES §3: not the straight line: the tool path leaves the chord by a fraction of a mm."""
+    """docs/maths.md#robots: not the straight line: the tool path leaves the chord by a fraction of a mm."""
     _, path = rrpp_path
     p = path.ee_poses(np.linspace(0, 1, 1001))[:, :3, 3]
     chord = (p[-1] - p[0]) / np.linalg.norm(p[-1] - p[0])

@@ -48,7 +48,7 @@ def test_paper_table2_reproduced():
     robot = load_robot('planar_3r')
     qa = solve_ik(robot, TABLE1_A)
     qb = solve_ik(robot, TABLE1_B, qa.q)
-    # Table 2 to its 3 printed decimals (signs restored, NOTES §3); default branch θ2 > 0
+    # Table 2 to its 3 printed decimals (signs restored, docs/maths.md#robots); default branch θ2 > 0
     assert_allclose(qa.q, [0.258, 0.583, -0.317], atol=6e-4)
     assert_allclose(qb.q, [0.969, 0.380, -0.574], atol=6e-4)
     for sol, T in ((qa, TABLE1_A), (qb, TABLE1_B)):
@@ -275,9 +275,9 @@ def test_regression_solve_ik_bad_target(target: Any, cause: str) -> None:
 
 
 def test_regression_ik_inexact_at_limits() -> None:
-    """Was a strict xfail: IK on the panda stopped at an embedding residual of 5.5e-4 for an exactly
-    reachable pose (fk of joints on their limits). Bounded damped least-squares steps (DLS_MAX_STEP)
-    no longer pin the iterate against the limits on the first step."""
+    """IK reaches an exactly reachable panda pose (fk of joints on their limits) to the exact residual:
+    bounded damped least-squares steps (DLS_MAX_STEP) keep the first step from pinning the iterate
+    against the limits, where it would stall at an embedding residual of about 5e-4."""
     from geodesic_planner.core.ik import solve_ik
     robot = load_robot('panda')
     sol = solve_ik(robot, robot.fk(np.array(PANDA_AT_LIMITS)))

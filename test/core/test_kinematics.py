@@ -27,7 +27,7 @@ UR5E_DH = [(0.0, 0.1625, 0.0, PI / 2), (0.0, 0.0, -0.425, 0.0), (0.0, 0.0, -0.39
 PANDA_MDH = [(0.0, 0.0, 0.333, 0.0), (-PI / 2, 0.0, 0.0, 0.0), (PI / 2, 0.0, 0.316, 0.0),
              (PI / 2, 0.0825, 0.0, 0.0), (-PI / 2, -0.0825, 0.384, 0.0), (PI / 2, 0.0, 0.0, 0.0),
              (PI / 2, 0.088, 0.0, 0.0)]
-# RRPP (NOTES.md §3), modified DH rows; tool row (π, 0, d5, −π/2).
+# RRPP (docs/maths.md#robots), modified DH rows; tool row (π, 0, d5, −π/2).
 A1 = A3 = D5 = 1.0
 RRPP_MDH = [(0.0, 0.0, 0.0, 0.0), (np.arccos(1 / np.sqrt(3)), A1, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0),
             (-PI / 2, A3, 0.0, PI)]
@@ -67,7 +67,7 @@ def random_q(robot: Chain, rng: np.random.Generator, n: int) -> np.ndarray:
 
 # ---------------------------------------------------------------------- forward kinematics
 def test_planar_3r_fk_closed_form():
-    """NOTES §3: p = (c1 + c12 + c123, s1 + s12 + s123, 0), n = (c123, s123, 0), a = z."""
+    """docs/maths.md#robots: p = (c1 + c12 + c123, s1 + s12 + s123, 0), n = (c123, s123, 0), a = z."""
     robot = load_robot('planar_3r')
     qs = random_q(robot, np.random.default_rng(1), 40)
     T = robot.fk(qs)
@@ -91,7 +91,7 @@ def test_planar_3r_fk_closed_form():
      (-0.016, 0.579, 0.815), (-0.994, -0.095, 0.047)),
 ])
 def test_rrpp_table6_joints_give_table5_poses(q, p, n, o, a):
-    """Paper Tables 5/6 (signs restored in NOTES §3): FK reproduces the printed 3 decimals."""
+    """Paper Tables 5/6 (signs restored in docs/maths.md#robots): FK reproduces the printed 3 decimals."""
     robot = load_robot('rrpp')
     assert robot.joint_types == ('revolute', 'revolute', 'prismatic', 'prismatic')
     T = robot.fk(np.array(q))

@@ -1,5 +1,5 @@
-"""The metric: G = J_vᵀJ_v + 2 J_ωᵀJ_ω (NOTES §1) = J12ᵀJ12 from finite differences, the planar 3R
-closed form, the RRPP printed entries (NOTES §3), weights and ε, the singular traditional metric."""
+"""The metric: G = J_vᵀJ_v + 2 J_ωᵀJ_ω (docs/maths.md#metric) = J12ᵀJ12 from finite differences, the planar 3R
+closed form, the RRPP printed entries (docs/maths.md#robots), weights and ε, the singular traditional metric."""
 from __future__ import annotations
 
 import os
@@ -50,7 +50,7 @@ def test_paper_metric_is_pullback_and_geometric_identity(name):
 
 
 def test_planar_3r_metric_closed_form():
-    """g = dx² + dy² + 2 dφ², φ = θ1 + θ2 + θ3 (NOTES §3)."""
+    """g = dx² + dy² + 2 dφ², φ = θ1 + θ2 + θ3 (docs/maths.md#robots)."""
     robot = load_robot('planar_3r')
     for q in random_q(robot, np.random.default_rng(2), 10):
         t1, t12, t123 = q[0], q[0] + q[1], q.sum()
@@ -69,7 +69,7 @@ def test_planar_3r_metric_closed_form():
                                (0.5, 0.3, -0.2, 0.7), (-1.0, 2.0, 1.5, -1.2)])
 def test_rrpp_printed_metric_entries(q):
     """Paper: g22 = 2 + a3² + (d4 + d5)², g24 = a3, g33 = g44 = 1, g23 = g34 = 0 (1-based indices
-    over (θ1, θ2, d3, d4)). With Table 6 printed as d4 = 0.640 (the sign restored by NOTES is
+    over (θ1, θ2, d3, d4)). With Table 6 printed as d4 = 0.640 (the sign restored in docs/maths.md is
     negative: our d4 = −0.640 points the other way), the printed g22 is 2 + a3² + (d5 − d4)² in our
     convention; at Table 6, (0.640 + 1)² = 2.6896."""
     a3 = d5 = 1.0

@@ -1,4 +1,4 @@
-"""Piecewise geodesics through via points (paper eq. 10, issue 3 item 1).
+"""Piecewise geodesics through via points (paper eq. 10).
 
 Oracles: every via pose reached exactly (q at the breakpoint = the IK of the via pose on the
 start's branch, FK = the pose); metric speed equal on both sides of every junction and equal to

@@ -1,5 +1,5 @@
 """GeodesicPlanner: the public contract, bad inputs with precise errors, weighted metrics, and
-redundant (7-joint) arms with the default ε (issue 3 item 6: within 0.1 mm and 1 mrad of line +
+redundant (7-joint) arms with the default ε (within 0.1 mm and 1 mrad of line +
 slerp on ordinary moves)."""
 from __future__ import annotations
 
@@ -285,7 +285,7 @@ def test_urdf_arm_with_singular_home_plans_ordinary_move_from_poses():
 
 # ---------------------------------------------------------------------- the pulled-back geodesic
 # On a non-redundant arm (epsilon = 0) whose line + slerp stays reachable, the geodesic is that
-# task-space geodesic pulled back by IK (NOTES.md §4): the planner verifies it at the mesh nodes
+# task-space geodesic pulled back by IK (docs/maths.md#oracles): the planner verifies it at the mesh nodes
 # instead of running Newton iterations. These tests compare it with exact oracles.
 KR6 = os.path.join(DATA, 'kr6_like.urdf')
 
