@@ -30,7 +30,7 @@ class IKError(GeodesicPlannerError):
         iterations: iterations used.
     """
 
-    def __init__(self, message: str, *, residual: float = float('nan'), iterations: int = 0):
+    def __init__(self, message: str, *, residual: float = float('nan'), iterations: int = 0) -> None:
         super().__init__(message)
         self.residual = residual
         self.iterations = iterations
@@ -44,7 +44,7 @@ class BVPError(GeodesicPlannerError):
         max_residual: largest relative collocation residual reached.
     """
 
-    def __init__(self, message: str, *, status: int = -1, max_residual: float = float('nan')):
+    def __init__(self, message: str, *, status: int = -1, max_residual: float = float('nan')) -> None:
         super().__init__(message)
         self.status = status
         self.max_residual = max_residual

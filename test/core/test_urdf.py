@@ -7,9 +7,9 @@ import os
 
 import numpy as np
 import pytest
+import urdf_util as U
 from numpy.testing import assert_allclose
 
-import urdf_util as U
 from geodesic_planner import load_robot
 from geodesic_planner.core.errors import KinematicsError, RequestError
 from geodesic_planner.core.urdf import chain_from_urdf
