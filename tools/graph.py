@@ -22,6 +22,7 @@ __all__ = [
     'wait_for_publishers',
     'wait_for_service',
     'wait_for_subscribers',
+    'wait_reader_matched',
     'wait_writer_matched',
     'warm_up_client',
 ]
@@ -191,7 +192,42 @@ def _full_name(namespace: str, name: str) -> str:
     return f'{namespace.rstrip("/")}/{name}'
 
 
-def wait_writer_matched(process: NodeProcess, topic: str, n: int = 1,  # noqa: ARG001 - named for callers
+def _barrier(runtime: RclpyRuntime, topic: str, side: str, timeout: float,
+             watch: list[NodeProcess]) -> None:
+    """One parameter-service round trip with every other node having a ``side`` endpoint on
+    ``topic`` (``'publishers'`` or ``'subscriptions'``), each through a client created now."""
+    from rcl_interfaces.srv import GetParameters
+
+    node = runtime.node
+    ours = {_full_name(nd.get_namespace(), nd.get_name()) for nd in runtime.executor.get_nodes()}
+    info_of = (node.get_publishers_info_by_topic if side == 'publishers'
+               else node.get_subscriptions_info_by_topic)
+
+    def others() -> list[Any]:
+        infos = info_of(topic)
+        # A participant's node names arrive after its endpoints; until then they read
+        # _NODE_NAME_UNKNOWN_, and we need the name to reach the node's parameter service.
+        if any(i.node_name == _UNKNOWN for i in infos):
+            return []
+        return [i for i in infos if _full_name(i.node_namespace, i.node_name) not in ours]
+    infos = wait_until(others, timeout, what=f'named {side} on {topic} in another process',
+                       watch=watch)
+    for full in sorted({_full_name(i.node_namespace, i.node_name) for i in infos}):
+        client = node.create_client(GetParameters, f'{full}/get_parameters')
+        try:
+            warm_up_client(client, GetParameters.Request(), timeout, watch=watch)
+        finally:
+            node.destroy_client(client)
+
+
+def _runtime(runtime: RclpyRuntime | None) -> RclpyRuntime:
+    runtime = runtime or RclpyRuntime.current
+    if runtime is None:
+        raise ToolError('waiting on the graph needs a running RclpyRuntime')
+    return runtime
+
+
+def wait_writer_matched(process: NodeProcess, topic: str, n: int = 1,
                         timeout: float = DEFAULT_TIMEOUT, *, watch: Iterable[NodeProcess] = (),
                         runtime: RclpyRuntime | None = None) -> None:
     """Wait until the publisher on ``topic`` will deliver to ``n`` subscriptions, ours included.
@@ -199,7 +235,7 @@ def wait_writer_matched(process: NodeProcess, topic: str, n: int = 1,  # noqa: A
     A volatile reader gets only what is published after the *writer* has matched it, and our
     side seeing the publisher says nothing about that. So, from the waiting side:
 
-    1. the graph shows at least ``n`` subscriptions on ``topic`` and a publisher;
+    1. the graph shows at least ``n`` subscriptions on ``topic``;
     2. each of our subscriptions on ``topic`` has matched a publisher (reader side);
     3. one round trip with the parameter service (``~/get_parameters``) of every other node
        publishing on ``topic``, through a client created now. A participant announces its
@@ -221,34 +257,39 @@ def wait_writer_matched(process: NodeProcess, topic: str, n: int = 1,  # noqa: A
     Raises:
         ToolError: a step timed out or a watched process died.
     """
-    from rcl_interfaces.srv import GetParameters
-
-    runtime = runtime or RclpyRuntime.current
-    if runtime is None:
-        raise ToolError('wait_writer_matched needs a running RclpyRuntime')
-    node = runtime.node
+    runtime = _runtime(runtime)
     watch = [process, *watch]
-    wait_until(lambda: node.count_subscribers(topic) >= n, timeout,
+    wait_until(lambda: runtime.node.count_subscribers(topic) >= n, timeout,
                what=f'{n} subscription(s) on {topic} in the graph', watch=watch)
-    ours = {_full_name(nd.get_namespace(), nd.get_name()) for nd in runtime.executor.get_nodes()}
-
-    def other_publishers() -> list[Any]:
-        infos = node.get_publishers_info_by_topic(topic)
-        # A participant's node names arrive after its endpoints; until then they read
-        # _NODE_NAME_UNKNOWN_, and we need the name to reach the node's parameter service.
-        if any(i.node_name == _UNKNOWN for i in infos):
-            return []
-        return [i for i in infos if _full_name(i.node_namespace, i.node_name) not in ours]
-    infos = wait_until(other_publishers, timeout,
-                       what=f'a named publisher on {topic} in another process', watch=watch)
     for nd in runtime.executor.get_nodes():
         for sub in nd.subscriptions:
             if sub.topic_name == topic:
                 wait_until(lambda s=sub: s.get_publisher_count() >= 1, timeout,
                            what=f'our subscription on {topic} to match a publisher', watch=watch)
-    for full in sorted({_full_name(i.node_namespace, i.node_name) for i in infos}):
-        client = node.create_client(GetParameters, f'{full}/get_parameters')
-        try:
-            warm_up_client(client, GetParameters.Request(), timeout, watch=watch)
-        finally:
-            node.destroy_client(client)
+    _barrier(runtime, topic, 'publishers', timeout, watch)
+
+
+def wait_reader_matched(process: NodeProcess, topic: str, n: int = 1,
+                        timeout: float = DEFAULT_TIMEOUT, *, watch: Iterable[NodeProcess] = (),
+                        runtime: RclpyRuntime | None = None) -> None:
+    """Wait until the subscription on ``topic`` will receive from ``n`` publishers, ours included.
+
+    The mirror of :func:`wait_writer_matched`: a volatile reader drops what was sent before it had
+    matched the writer itself. The graph shows at least ``n`` publishers on ``topic``, each of
+    our publishers on it has matched a subscription, and every other node subscribing to
+    ``topic`` has answered a parameter request whose request writer was announced after our
+    publishers (same ordered discovery channel), so its readers are paired with them.
+
+    Raises:
+        ToolError: a step timed out or a watched process died.
+    """
+    runtime = _runtime(runtime)
+    watch = [process, *watch]
+    wait_until(lambda: runtime.node.count_publishers(topic) >= n, timeout,
+               what=f'{n} publisher(s) on {topic} in the graph', watch=watch)
+    for nd in runtime.executor.get_nodes():
+        for pub in nd.publishers:
+            if pub.topic_name == topic:
+                wait_until(lambda p=pub: p.get_subscription_count() >= 1, timeout,
+                           what=f'our publisher on {topic} to match a subscription', watch=watch)
+    _barrier(runtime, topic, 'subscriptions', timeout, watch)

@@ -169,21 +169,25 @@ def test_format_param_and_ros_args() -> None:
 
 @pytest.mark.ros
 def test_real_node_serves_is_matched_and_exits_cleanly_on_sigint(tmp_path: Path) -> None:
-    """The helpers against a real node: its service, its publisher matched to us, SIGINT -> 0."""
+    """The helpers against a real node: its service, its endpoints matched to ours, SIGINT -> 0."""
     from nav_msgs.srv import GetPlan
+    from sensor_msgs.msg import JointState
     from trajectory_msgs.msg import JointTrajectory
 
-    from tools.graph import Collector, RclpyRuntime, wait_for_service, wait_writer_matched
+    from tools.graph import (Collector, RclpyRuntime, wait_for_service, wait_reader_matched,
+                             wait_writer_matched)
 
     runtime = RclpyRuntime()
     proc = popen_node('geodesic_planner_node', params={'robot': 'planar_3r'}, log_dir=tmp_path)
     try:
         Collector(runtime.node, JointTrajectory, '/geodesic_planner/joint_trajectory')
+        runtime.node.create_publisher(JointState, '/joint_states', 10)
         client = runtime.node.create_client(GetPlan, '/geodesic_planner/plan')
         wait_for_service(client, 60, watch=[proc])
         wait_writer_matched(proc, '/geodesic_planner/joint_trajectory', 1, 60)
         with pytest.raises(ToolError, match='2 subscription'):
             wait_writer_matched(proc, '/geodesic_planner/joint_trajectory', 2, 0.2)
+        wait_reader_matched(proc, '/joint_states', 1, 60)
         assert proc.stop(timeout=10.0) == 0, proc.log_text()
         assert proc.signals_sent == [signal.SIGINT]
         assert 'planar_3r' in proc.log_text()        # output captured (read after the exit)

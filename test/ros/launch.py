@@ -16,7 +16,8 @@ Fixtures (registered by ``test/ros/conftest.py``):
 from __future__ import annotations
 
 from tools.graph import (Collector, RclpyRuntime, call_service, wait_for_publishers, wait_for_service,
-                         wait_for_subscribers, wait_writer_matched, warm_up_client)
+                         wait_for_subscribers, wait_reader_matched, wait_writer_matched,
+                         warm_up_client)
 from tools.process import (DEFAULT_TIMEOUT, NodeProcess, ToolError, bin_dir, format_param, popen_node,
                            ros_args_for, wait_until)
 
@@ -34,6 +35,7 @@ __all__ = [
     'wait_for_publishers',
     'wait_for_service',
     'wait_for_subscribers',
+    'wait_reader_matched',
     'wait_until',
     'wait_writer_matched',
     'warm_up_client',
