@@ -293,14 +293,17 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
         for proc in nodes:
             if proc.alive():
                 proc.stop(timeout=5.0)
-        reason = 'interrupted' if isinstance(exc, KeyboardInterrupt) else f'{type(exc).__name__}: {exc}'
+        # The first line only: a ToolError also quotes the log tails, printed below.
+        first_line = (str(exc).splitlines() or [''])[0]
+        reason = ('interrupted' if isinstance(exc, KeyboardInterrupt)
+                  else f'{type(exc).__name__}: {first_line}')
         say(f'demo failed ({reason}); node logs:')
         for proc in nodes:
             tail = proc.log_tail(30)
             say(f'--- {proc.describe()} ---')
             say(tail if tail else '(empty log)')
         if isinstance(exc, ToolError):
-            raise DemoError(str(exc).split('\n', 1)[0]) from None
+            raise DemoError(first_line) from None
         raise
     finally:
         if runtime is not None:
