@@ -5,13 +5,11 @@ graph (``count_subscribers``) can show a subscription before the writer has matc
 that publishes a one-off message (a planned trajectory) therefore waits, briefly and boundedly,
 until every subscription the graph shows on the topic has matched its publisher.
 
-The graph of the publishing node may not show a new subscription at all yet, so a client that
-must receive the next message waits for the writer's own word: :func:`matched_logger` logs
-``<topic>: N subscription(s) matched`` whenever the publisher's match count changes.
+For people reading the log, :func:`matched_logger` logs ``<topic>: N subscription(s) matched``
+whenever the publisher's match count changes; clients wait on the graph, not on that line.
 """
 from __future__ import annotations
 
-import re
 import time
 
 from rclpy.event_handler import PublisherEventCallbacks
@@ -44,10 +42,3 @@ def matched_logger(node: Node, topic: str) -> PublisherEventCallbacks:
         if getattr(status, 'current_count_change', 0):
             node.get_logger().info(f'{topic}: {getattr(status, "current_count", 0)} subscription(s) matched')
     return PublisherEventCallbacks(matched=on_matched)
-
-
-def logged_matches(log_text: str, topic: str) -> int:
-    """Most subscriptions a node's log says its publisher on ``topic`` had matched (the lines of
-    :func:`matched_logger`; 0 if none): what a client waits for before triggering a publish."""
-    counts = re.findall(rf'{re.escape(topic)}: (\d+) subscription\(s\) matched', log_text)
-    return max((int(c) for c in counts), default=0)
