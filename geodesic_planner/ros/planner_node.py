@@ -34,18 +34,22 @@ error line and exit code 1.
 Timing and the pipeline (parameters -> configuration, request -> messages):
 :mod:`geodesic_planner.ros.planning`.
 
-Executor model, on rclpy's public API: a MultiThreadedExecutor (4 threads) spun by the main
-thread. The plan service has a MutuallyExclusiveCallbackGroup of its own, so plans are computed
-one at a time in request order, and each successful plan is published exactly once, by the
-request that computed it, before its response is sent. ``/joint_states`` has a second mutually
-exclusive group, and the parameter services stay in the node's default group, so state and
-parameter updates run on other executor threads and never wait behind a plan. Shared state is
-swapped atomically: the latest joint vector is an immutable tuple, and the configuration (robot,
-planner, limits) is an immutable :class:`~geodesic_planner.ros.planning.PlannerConfig` that a request reads once at its start;
-a parameter change builds a new one (or rejects it with a reason) under a lock.
+Executor model, on rclpy's public API: ``rclpy.experimental.EventsExecutor`` spun by the main
+thread (single-threaded, so plans are computed one at a time in request order, and each
+successful plan is published exactly once, by the request that computed it, before its response
+is sent). The plan service and ``/joint_states`` each have a MutuallyExclusiveCallbackGroup of
+their own, the parameter services the node's default group, so the node also runs unchanged on
+a MultiThreadedExecutor. A ``/joint_states`` message or a parameter request that arrives during
+a plan waits for it (about 10 ms, at most ``plan_timeout``); only the latest state matters. The
+configuration (robot, planner, limits) is an immutable
+:class:`~geodesic_planner.ros.planning.PlannerConfig` that a request reads once at its start; a
+parameter change builds a new one (or rejects it with a reason) under a lock.
 
-Measured with ``benchmarks/node_latency.py`` (ur5e, 2 shared cores, see ``docs/benchmarks.md``,
-"Node on stock rclpy"): MEASUREMENT_PLACEHOLDER
+Why EventsExecutor, measured with ``benchmarks/node_latency.py`` (ur5e, /joint_states at 250 Hz,
+2 cores shared with other work; ``docs/benchmarks.md``, "Node on stock rclpy"):
+MultiThreadedExecutor (4 threads, the groups above): 5.5 plans/s with 4 clients, 178 ms node CPU
+per plan, p50 18.4 ms (it rebuilds its wait set in Python for every state message); EventsExecutor:
+57.6 plans/s, 13.7 ms CPU per plan, p50 11.6 ms (targets: p50 <= 15 ms, >= 50 plans/s).
 
 Bounded time: each plan runs in a worker thread and the service callback waits at most
 ``plan_timeout`` s for it. A plan still computing then is abandoned: the request fails, and a
@@ -69,7 +73,8 @@ from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -86,8 +91,6 @@ from .params import PLANNER_PARAMETERS
 from .planning import ConfigError, PlanResult, build_config, compute_plan
 
 NODE_NAME = 'geodesic_planner'
-#: Executor threads: a plan, a joint state and a parameter request at once, plus one spare.
-EXECUTOR_THREADS = 4
 
 
 def _joint_state_problem(message: str) -> str:
@@ -324,7 +327,7 @@ def main(args: list[str] | None = None) -> int:
         node = None
         executor = None
         try:
-            executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
+            executor = EventsExecutor()
             node = GeodesicPlannerNode()
             executor.add_node(node)
             runtime.spin_until(stop, executor, node.get_logger())
