@@ -11,7 +11,7 @@ Usage::
 per processed trajectory: joint positions, velocities and accelerations against time, the planner's
 trajectory (input topic, markers) over the processor's (output topic, lines); trajectories on
 other JointTrajectory topics, or inputs without an output, get a PNG of their own. ``repair``
-rebuilds a bag whose recording was killed (see :func:`geodesic_planner.io.bag.repair`).
+rebuilds a bag whose recording was killed (see :func:`geodesic_planner.io.bags.repair`).
 Errors print one line ``ERROR: ...`` and exit with 1.
 """
 from __future__ import annotations
@@ -23,7 +23,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..io.bag import BagInfo, TrajectoryRecord, bag_info, read_trajectories, repair
+from ..io.bags import BagInfo, TrajectoryRecord, bag_info, read_trajectories, repair
 from ..core.errors import GeodesicPlannerError
 
 if TYPE_CHECKING:

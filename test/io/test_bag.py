@@ -20,7 +20,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader
 
 from geodesic_planner.cli import bag as bag_cli
-from geodesic_planner.io.bag import (
+from geodesic_planner.io.bags import (
     JOINT_STATE,
     JOINT_TRAJECTORY,
     STORAGES,
@@ -309,7 +309,7 @@ def test_flushed_messages_survive_a_kill(tmp_path, ts, storage):
 CHILD = textwrap.dedent('''
     import sys, time
     from types import SimpleNamespace as NS
-    from geodesic_planner.io.bag import BagRecorder, JOINT_STATE, make_typestore, to_cdr
+    from geodesic_planner.io.bags import BagRecorder, JOINT_STATE, make_typestore, to_cdr
     ts = make_typestore()
     with BagRecorder(sys.argv[1], storage=sys.argv[2], topics={'/joint_states': JOINT_STATE},
                      flush_period=0.5) as rec:
