@@ -15,7 +15,7 @@ namespace). Steps:
 4. receive the trajectory on ``/geodesic_planner/joint_trajectory`` and the processed one on
    ``/trajectory_processor/joint_trajectory``;
 5. stop the processor with SIGINT (the bag is closed), then the planner;
-6. read both trajectories back from the bag (:func:`geodesic_planner.io.bag.read_trajectories`),
+6. read both trajectories back from the bag (:func:`geodesic_planner.io.bags.read_trajectories`),
    print a summary and write ``DIR/summary.json`` and ``DIR/trajectory.png``.
 
 A node that dies or a wait that times out prints the node's log tail and exits with 1.
@@ -314,7 +314,7 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
 
 def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # noqa: ANN401
                goal_T: np.ndarray, latency_ms: float, say: Callable[[str], None]) -> dict[str, Any]:
-    from geodesic_planner.io.bag import read_trajectories
+    from geodesic_planner.io.bags import read_trajectories
 
     records = read_trajectories(bag_dir)
     by_topic: dict[str, Any] = {}

@@ -21,7 +21,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..io.bag import STORAGES
+from ..io.bags import STORAGES
 
 #: Robot used when neither ``robot`` nor ``robot_description`` is given: the paper's planar 3R arm.
 DEFAULT_ROBOT = 'planar_3r'

@@ -31,7 +31,7 @@ the planner node): ``input_topic``, ``output_topic``, ``bag_path``, ``storage``,
 reason (``<name>: <problem>``).
 
 Recording (``bag_path`` non-empty): a new rosbag2 directory per run, never an existing one
-(:func:`geodesic_planner.io.bag.new_bag_path`: an existing non-empty ``bag_path`` gets a timestamped
+(:func:`geodesic_planner.io.bags.new_bag_path`: an existing non-empty ``bag_path`` gets a timestamped
 bag inside or next to it; the log says where). ``record_topics`` (default: input, output,
 ``/joint_states``) may name other topics as ``name`` (type taken from the ROS graph once a
 publisher appears) or ``name=pkg/msg/Type`` (``name:pkg/msg/Type`` works too, but needs quotes
@@ -39,7 +39,7 @@ inside a YAML list on the command line). Input and other topics are recorded as 
 received; the node's own output as the exact CDR of the published message (rosbags
 serialisation; ``serialize_message`` would pad empty arrays). Timestamps are receive/publish
 times of the node's clock. Data reach the file at least every 0.5 s (see
-:mod:`geodesic_planner.io.bag`): after SIGKILL ``geodesic-bag repair`` recovers all but the last
+:mod:`geodesic_planner.io.bags.recorder`): after SIGKILL ``geodesic-bag repair`` recovers all but the last
 0.5 s. On SIGINT/SIGTERM the node takes every message already delivered to it (processing
 the backlog for up to 2 s, then recording the rest raw without processing, see :func:`_drain`),
 closes the bag (metadata written) and exits with 0. The closing log line gives the counts:
@@ -71,7 +71,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message
 from trajectory_msgs.msg import JointTrajectory
 
-from ..io.bag import JOINT_STATE, JOINT_TRAJECTORY, STORAGES, BagRecorder, make_typestore, new_bag_path, to_cdr
+from ..io.bags import JOINT_STATE, JOINT_TRAJECTORY, STORAGES, BagRecorder, make_typestore, new_bag_path, to_cdr
 from ..core.errors import BagError, GeodesicPlannerError, RequestError
 from ..timing.resample import process_trajectory
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory

@@ -91,6 +91,6 @@ def test_demo_end_to_end(tmp_path: Path) -> None:
         assert all(0 < v <= 1.0 + 1e-9 for v in part['peak_joint_speed'])  # planar_3r limit 1 rad/s
     assert (out / 'trajectory.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert (out / 'bag' / 'metadata.yaml').is_file()
-    from geodesic_planner.io.bag import read_trajectories
+    from geodesic_planner.io.bags import read_trajectories
     topics = sorted({r.topic for r in read_trajectories(out / 'bag')})
     assert topics == ['/geodesic_planner/joint_trajectory', '/trajectory_processor/joint_trajectory']

@@ -28,7 +28,7 @@ from rosbags.highlevel import AnyReader  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
-from geodesic_planner.io.bag import JOINT_TRAJECTORY, bag_info, read_trajectories, to_cdr  # noqa: E402
+from geodesic_planner.io.bags import JOINT_TRAJECTORY, bag_info, read_trajectories, to_cdr  # noqa: E402
 from geodesic_planner.ros import conversions as cv  # noqa: E402
 
 from .launch import (Collector, call_service, wait_for_service, wait_for_subscribers,  # noqa: E402
@@ -467,7 +467,7 @@ def on_disk(bag: Path, scratch: Path) -> dict[str, int]:
     import shutil
     import uuid
 
-    from geodesic_planner.io.bag import repair
+    from geodesic_planner.io.bags import repair
     from geodesic_planner.core.errors import BagError
 
     probe = scratch / f'probe_{uuid.uuid4().hex}'
@@ -482,7 +482,7 @@ def on_disk(bag: Path, scratch: Path) -> dict[str, int]:
 
 def test_sigkill_then_repair_recovers_flushed_messages(start_node: Any, ros_node: Any, tmp_path: Path) -> None:
     """After SIGKILL the bag has no metadata; geodesic-bag repair restores everything flushed."""
-    from geodesic_planner.io.bag import repair
+    from geodesic_planner.io.bags import repair
 
     bag = tmp_path / 'bag'
     p = Processor(start_node, ros_node, {'bag_path': str(bag)})

@@ -43,7 +43,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from sensor_msgs.msg import JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
-from geodesic_planner.io.bag import bag_info, read_trajectories  # noqa: E402
+from geodesic_planner.io.bags import bag_info, read_trajectories  # noqa: E402
 from geodesic_planner.ros import conversions as cv  # noqa: E402
 
 from .launch import (Collector, NodeProcess, call_service,  # noqa: E402
