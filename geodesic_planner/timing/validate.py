@@ -108,7 +108,8 @@ def trajectory_problems(joint_names: Sequence[str], times: Any, positions: Any,
     problems = _Problems()
     names = [str(n) for n in joint_names]
     if not names:
-        problems.add('no joint names')
+        problems.add('no joint names')  # nothing to size the points against
+        return problems.result()
     empty = [i for i, n in enumerate(names) if not n]
     if empty:
         problems.add(f'empty joint name at index {empty[0]}')
@@ -128,7 +129,7 @@ def trajectory_problems(joint_names: Sequence[str], times: Any, positions: Any,
         problems.add('no points')
         return problems.result()
     finite = np.isfinite(t)
-    problems.add_each(np.flatnonzero(~finite), lambda i: f'point {i}: time_from_start {t[i]!r} is not finite')
+    problems.add_each(np.flatnonzero(~finite), lambda i: f'point {i}: time_from_start {float(t[i])} is not finite')
     ns = np.round(np.where(finite, t, 0.0) * 1e9)
     problems.add_each(np.flatnonzero(finite & (ns < 0)),
                       lambda i: f'point {i}: time_from_start {t[i]:.9g} s is negative')
