@@ -14,6 +14,10 @@ class RequestError(GeodesicPlannerError, ValueError):
     """A request is malformed: NaN/inf, wrong shape or joint count, bad quaternion, unknown name."""
 
 
+class TrajectoryError(RequestError):
+    """A joint trajectory breaks joint_trajectory_controller's rules (the message lists them)."""
+
+
 class KinematicsError(GeodesicPlannerError):
     """A robot model cannot be built (bad DH table, URDF not a serial chain, unsupported joint)."""
 
@@ -67,4 +71,5 @@ __all__ = [
     'LimitError',
     'RequestError',
     'SingularMetricError',
+    'TrajectoryError',
 ]
