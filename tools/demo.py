@@ -33,7 +33,6 @@ import shutil
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -120,7 +119,7 @@ def trajectory_summary(t: np.ndarray, q: np.ndarray, dq: np.ndarray | None, robo
     dev = segment_deviation(tool, start[:3, 3], goal[:3, 3])
     peak = np.max(np.abs(dq), axis=0) if dq is not None and len(dq) else np.full(q.shape[1], np.nan)
     return {
-        'points': int(len(t)),
+        'points': len(t),
         'duration_s': float(t[-1] - t[0]) if len(t) > 1 else 0.0,
         'peak_joint_speed': [float(v) for v in peak],
         'max_tool_path_deviation_m': float(dev.max()),
@@ -140,14 +139,6 @@ def _start(name: str, executable: str, params: dict[str, Any], log_dir: Path) ->
 
 # --------------------------------------------------------------------------- output
 
-@dataclass
-class _Series:
-    label: str
-    t: np.ndarray
-    q: np.ndarray
-    dq: np.ndarray | None
-
-
 def _reorder(names: Sequence[str], robot_names: Sequence[str], a: np.ndarray | None) -> np.ndarray | None:
     if a is None:
         return None
@@ -155,35 +146,6 @@ def _reorder(names: Sequence[str], robot_names: Sequence[str], a: np.ndarray | N
     if missing:
         raise DemoError(f'trajectory lacks joints {missing} (has {list(names)})')
     return a[:, [list(names).index(n) for n in robot_names]]
-
-
-def plot(series: Sequence[_Series], joint_names: Sequence[str], path: Path, title: str) -> None:
-    """Joint positions and velocities vs time, one colour per joint, one line style per series."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-    styles = [dict(ls='none', marker='o', ms=3, alpha=0.6), dict(ls='-', lw=1.5)]
-    colours = plt.rcParams['axes.prop_cycle'].by_key()['color']
-    for k, s in enumerate(series):
-        for j, name in enumerate(joint_names):
-            c = colours[j % len(colours)]
-            step = max(1, len(s.t) // 80) if k == 0 else 1
-            axes[0].plot(s.t[::step], s.q[::step, j], color=c, label=f'{name} ({s.label})',
-                         **styles[k % 2])
-            if s.dq is not None:
-                axes[1].plot(s.t[::step], s.dq[::step, j], color=c, **styles[k % 2])
-    axes[0].set_ylabel('position (rad or m)')
-    axes[1].set_ylabel('velocity (rad/s or m/s)')
-    axes[1].set_xlabel('time from start (s)')
-    axes[0].legend(fontsize=7, ncol=2)
-    for ax in axes:
-        ax.grid(True, alpha=0.3)
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def _fmt_speeds(v: Sequence[float]) -> str:
@@ -315,6 +277,7 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
 def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # noqa: ANN401
                goal_T: np.ndarray, latency_ms: float, say: Callable[[str], None]) -> dict[str, Any]:
     from geodesic_planner.io.bags import read_trajectories
+    from geodesic_planner.io.plotting import plot_trajectories
 
     records = read_trajectories(bag_dir)
     by_topic: dict[str, Any] = {}
@@ -326,7 +289,7 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
                         f'(topics: {", ".join(sorted(by_topic)) or "none"})')
     say(f'bag read back: {len(records)} trajectories in {bag_dir}')
 
-    series, parts = [], {}
+    columns, parts = [], {}
     for key, topic, label in (('planned', PLANNED_TOPIC, 'planned'),
                               ('processed', PROCESSED_TOPIC, f'processed x{VELOCITY_SCALING:g}')):
         rec = by_topic[topic]
@@ -335,7 +298,7 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
         q = _reorder(rec.joint_names, robot.joint_names, rec.positions)
         dq = _reorder(rec.joint_names, robot.joint_names, rec.velocities)
         parts[key] = {'topic': topic, **trajectory_summary(rec.t, q, dq, robot, start_T, goal_T)}
-        series.append(_Series(label, rec.t, q, dq))
+        columns.append((label, rec))
 
     summary = {
         'robot': robot.name,
@@ -349,8 +312,8 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
         **parts,
     }
     (output / 'summary.json').write_text(json.dumps(summary, indent=1) + '\n')
-    plot(series, robot.joint_names, output / 'trajectory.png',
-         f'{robot.name}: geodesic trajectory, planned and processed (from the bag)')
+    plot_trajectories(output / 'trajectory.png', columns,
+                      title=f'{robot.name}: geodesic trajectory, planned and processed (from the bag)')
 
     p, r = parts['planned'], parts['processed']
     say('')

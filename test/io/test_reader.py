@@ -36,8 +36,8 @@ def test_invalid_trajectory_recorded_with_problems(tmp_path, ts):
     with BagRecorder(tmp_path / 'b', topics={IN: JOINT_TRAJECTORY}) as rec:
         rec.write(IN, 1, to_cdr(bad, JOINT_TRAJECTORY, ts))
     (r,) = read_trajectories(tmp_path / 'b')
-    assert 'point 1: 2 positions for 3 joints' in r.problems
-    assert 'point 2: non-finite positions' in r.problems
+    assert 'point 1: 2 positions, expected 3 (one per joint)' in r.problems
+    assert 'point 2: positions contain NaN or inf' in r.problems
     assert any('not after' in p for p in r.problems)
     assert np.isnan(r.positions[1]).all()
     assert r.velocities is None

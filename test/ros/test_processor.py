@@ -197,9 +197,9 @@ def test_invalid_trajectories_rejected_recorded_and_node_keeps_going(start_node:
         return msg
 
     cases = [
-        ('point 2: 2 positions for 3 joints', lambda m: setattr(m.points[2], 'positions', [0.0, 1.0])),
-        ('point 1: non-finite velocities', lambda m: m.points[1].velocities.__setitem__(0, float('nan'))),
-        ('point 3: non-finite positions', lambda m: m.points[3].positions.__setitem__(2, float('inf'))),
+        ('point 2: 2 positions, expected 3', lambda m: setattr(m.points[2], 'positions', [0.0, 1.0])),
+        ('point 1: velocities contain NaN or inf', lambda m: m.points[1].velocities.__setitem__(0, float('nan'))),
+        ('point 3: positions contain NaN or inf', lambda m: m.points[3].positions.__setitem__(2, float('inf'))),
         ('not after', lambda m: setattr(m.points[4], 'time_from_start', m.points[3].time_from_start)),
         ('no points', lambda m: setattr(m, 'points', [])),
         ('duplicate joint names', lambda m: setattr(m, 'joint_names', ['a', 'a', 'b'])),
