@@ -189,7 +189,7 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
     from trajectory_msgs.msg import JointTrajectory
 
     from geodesic_planner.ros.conversions import joint_trajectory_to_arrays, matrix_to_pose_stamped
-    from tools.graph import Collector, RclpyRuntime, wait_for_service, wait_writer_matched
+    from tools.graph import Collector, RclpyRuntime, StatusWatch, wait_for_service, wait_writer_matched
 
     nodes: list[NodeProcess] = []
     runtime = None
@@ -211,6 +211,7 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
         # Subscriptions before any client: wait_writer_matched relies on that order.
         received = {topic: Collector(node, JointTrajectory, topic, qos)
                     for topic in (PLANNED_TOPIC, PROCESSED_TOPIC)}
+        status = StatusWatch(node)
         client = node.create_client(GetPlan, PLAN_SERVICE)
 
         t0 = time.monotonic()
@@ -220,6 +221,11 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
         # us, the processor's publisher us, before the plan is asked for.
         wait_writer_matched(planner, PLANNED_TOPIC, 2, timeout, watch=nodes, runtime=runtime)
         wait_writer_matched(processor, PROCESSED_TOPIC, 1, timeout, watch=nodes, runtime=runtime)
+        # Between the two nodes only they know: each reports its side of the match on /diagnostics.
+        status.wait('/trajectory_processor', 'input publishers matched', lambda v: int(v) >= 1, timeout,
+                    watch=nodes)
+        status.wait('/geodesic_planner', 'trajectory subscriptions matched', lambda v: int(v) >= 2, timeout,
+                    watch=nodes)
         say(f'processor ready: subscribed to {PLANNED_TOPIC}, publishing {PROCESSED_TOPIC}')
 
         request = GetPlan.Request()

@@ -10,7 +10,7 @@ from __future__ import annotations
 import itertools
 import os
 import threading
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any, ClassVar
 
 from tools.process import DEFAULT_TIMEOUT, NodeProcess, ToolError, wait_until
@@ -129,6 +129,41 @@ class Collector:
                    watch=watch)
         with self._lock:
             return list(self.messages)
+
+
+class StatusWatch:
+    """The latest ``/diagnostics`` status of every node (geodesic_planner.ros.diagnostics).
+
+    Example::
+
+        watch = StatusWatch(runtime.node)
+        watch.wait('/trajectory_processor', 'input publishers matched', lambda v: int(v) >= 1)
+    """
+
+    def __init__(self, node: Any) -> None:  # noqa: ANN401
+        from diagnostic_msgs.msg import DiagnosticArray
+
+        self._latest: dict[str, dict[str, str]] = {}
+        self._lock = threading.Lock()
+        self.subscription = node.create_subscription(DiagnosticArray, '/diagnostics', self._callback, 50)
+
+    def _callback(self, msg: Any) -> None:  # noqa: ANN401
+        with self._lock:
+            for status in msg.status:
+                self._latest[status.name] = {kv.key: kv.value for kv in status.values}
+
+    def values(self, name: str) -> dict[str, str]:
+        """The latest values of the node ``name`` (fully qualified, e.g. ``/geodesic_planner``)."""
+        with self._lock:
+            return dict(self._latest.get(name, {}))
+
+    def wait(self, name: str, key: str, predicate: Callable[[str], bool], timeout: float = DEFAULT_TIMEOUT, *,
+             watch: Iterable[NodeProcess] = ()) -> None:
+        """Wait until node ``name`` reports a value ``key`` for which ``predicate`` holds."""
+        def holds() -> bool:
+            value = self.values(name).get(key)
+            return value is not None and predicate(value)
+        wait_until(holds, timeout, what=f'{name} to report {key!r} as wanted on /diagnostics', watch=watch)
 
 
 class RclpyRuntime:

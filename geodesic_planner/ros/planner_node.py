@@ -86,6 +86,7 @@ from visualization_msgs.msg import MarkerArray
 from ..core.errors import GeodesicPlannerError, RequestError
 from . import conversions as cv
 from . import params, runtime
+from .diagnostics import NodeStatus
 from .matching import matched_logger, wait_for_matched_subscriptions
 from .params import PLANNER_PARAMETERS
 from .planning import ConfigError, PlanResult, build_config, compute_plan
@@ -125,11 +126,15 @@ class GeodesicPlannerNode(Node):
         self._publish_lock = threading.Lock()
         self._unmatched_graph_count: int | None = None
 
+        self.status = NodeStatus(self)
+        self.status.set(trajectory_subscriptions_matched=0)
         self.trajectory_pub = self.create_publisher(
             JointTrajectory, '~/joint_trajectory',
             QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                        reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE),
-            event_callbacks=matched_logger(self, self.resolve_topic_name('~/joint_trajectory')))
+            event_callbacks=matched_logger(
+                self, self.resolve_topic_name('~/joint_trajectory'),
+                on_count=lambda n: self.status.set(trajectory_subscriptions_matched=n)))
         self.marker_pub = self.create_publisher(
             MarkerArray, '~/path_markers',
             QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,

@@ -76,6 +76,7 @@ from ..core.errors import BagError, GeodesicPlannerError, RequestError
 from ..timing.resample import process_trajectory
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory
 from . import params, runtime
+from .diagnostics import NodeStatus
 from .matching import matched_logger, wait_for_matched_subscriptions
 from .params import PROCESSOR_PARAMETERS
 
@@ -116,6 +117,9 @@ class TrajectoryProcessorNode(Node):
         #: set at shutdown once DRAIN_TIMEOUT is spent: inputs are recorded, not processed
         self.record_only = False
 
+        self.status = NodeStatus(self)
+        self.status.set(input_publishers_matched=0, output_subscriptions_matched=0,
+                        received=0, published=0, rejected=0)
         try:
             events = SubscriptionEventCallbacks(matched=self._on_input_matched,
                                                 message_lost=self._on_input_lost)
@@ -125,7 +129,9 @@ class TrajectoryProcessorNode(Node):
             output_topic = self.get_parameter('output_topic').value
             self.output_pub = self.create_publisher(
                 JointTrajectory, output_topic, _qos(),
-                event_callbacks=matched_logger(self, f'output {self.resolve_topic_name(output_topic)}'))
+                event_callbacks=matched_logger(
+                    self, f'output {self.resolve_topic_name(output_topic)}',
+                    on_count=lambda n: self.status.set(output_subscriptions_matched=n)))
         except (ValueError, TypeError, RuntimeError, NameValidationException) as err:
             msg = f'invalid topic name: {err}'
             raise RequestError(msg) from err
@@ -273,8 +279,6 @@ class TrajectoryProcessorNode(Node):
 
     # ------------------------------------------------------------------ processing
     def _log_matched(self, topic: str, status: Any) -> None:  # noqa: ANN401
-        # A volatile reader gets only what is published after *it* matched the writer: tests and
-        # users can wait for this line before publishing.
         if status.current_count_change:
             self.get_logger().info(f'{topic}: {status.current_count} publisher(s) matched')
 
@@ -284,7 +288,10 @@ class TrajectoryProcessorNode(Node):
             f'({status.total_count} in total)')
 
     def _on_input_matched(self, status: Any) -> None:  # noqa: ANN401
+        # A volatile reader gets only what is published after *it* matched the writer, and only
+        # this node knows when that is: the count goes to /diagnostics for scripts to wait on.
         self._log_matched(f'input {self.input_topic}', status)
+        self.status.set(input_publishers_matched=status.current_count)
 
     def _on_input_lost(self, status: Any) -> None:  # noqa: ANN401
         self._log_lost(f'input {self.input_topic}', status)
@@ -300,6 +307,7 @@ class TrajectoryProcessorNode(Node):
         except Exception as err:  # noqa: BLE001 - boundary: one bad input never ends the node
             self.rejected += 1
             self.get_logger().error(f'rejected trajectory: internal error: {type(err).__name__}: {err}')
+        self.status.set(received=self.received, published=self.published, rejected=self.rejected)
 
     def _process(self, raw: bytes) -> None:
         """Decode, validate, resample, publish and record one input (already recorded raw)."""
