@@ -171,8 +171,8 @@ CHILD_IGNORES_SIGINT = textwrap.dedent("""\
     import signal, sys, time
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     {extra}
+    print('to stderr', file=sys.stderr, flush=True)   # before 'ready': in the log once it is
     print('ready', flush=True)
-    print('to stderr', file=sys.stderr, flush=True)
     while True:
         time.sleep(0.05)
     """)
@@ -206,8 +206,8 @@ def test_stop_escalates_to_sigkill_when_sigint_and_sigterm_ignored(tmp_path: Pat
 def test_stop_with_sigint_only_when_child_exits_cleanly(tmp_path: Path) -> None:
     code = textwrap.dedent("""\
         import sys, time
-        print('ready', flush=True)
         try:
+            print('ready', flush=True)    # inside the try: a SIGINT right after it is handled
             while True:
                 time.sleep(0.05)
         except KeyboardInterrupt:
