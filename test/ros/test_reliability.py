@@ -5,8 +5,9 @@
   (NaN, unnormalised quaternion, unreachable, wrong frame), while invalid parameter updates hit
   both nodes: every request answered (good -> a plan ending at its goal, bad -> empty, with one
   error line naming the cause), every successful plan published exactly once (matched to its
-  request by forward kinematics), every published trajectory in the processor's bag (input
-  count == published, output count == input), outputs every 0.01 s lasting twice as long on
+  request by forward kinematics), every trajectory published once the processor's input had
+  matched the planner in the processor's bag (input count == received, output count == input,
+  the last plans published), outputs every 0.01 s lasting twice as long on
   the same points (the rejected updates changed nothing), both nodes' VmRSS flat.
 * a malformed /joint_states stream interleaved with from-state requests never breaks planning.
 * SIGKILL of the processor mid-stream, then ``geodesic-bag repair``: at most the last second lost.
@@ -14,8 +15,9 @@
   the bag holds every message delivered to it.
 
 Oracles: planar 3R forward kinematics (unit links), the requests' own goals, exact sample
-times. No fixed sleeps: every wait has an event and a deadline. N = 5 by default, 25 with
-``--run-slow``.
+times. No fixed sleeps: every wait has an event and a deadline, and every count waits for the
+messages it counts (a reply does not mean that the trajectory it published has arrived; see
+docs/testing.md). N = 5 by default, 25 with ``--run-slow``.
 """
 from __future__ import annotations
 
