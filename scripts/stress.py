@@ -6,8 +6,8 @@ Usage (through scripts/stress.sh, which sets up the venv first):
 Each run is ``bash scripts/test.sh ARGS -p no:randomly --junitxml=DIR/run-I.xml`` (the project's
 venv and private network namespace), one run at a time; the K busy loops run during all of them
 and are killed at the end (each also exits on its own when this script is gone or after
-MAX_HOG_S). Options before ``--`` (or before the first other argument) are the runner's; pytest's
-own ``-k EXPR`` goes after ``--``. Exit code: 0 when no test failed in any run, else 1.
+MAX_HOG_S). The runner's options go before ``--``, anything else to pytest (its own ``-k EXPR``
+after ``--``). Exit code: 0 when no test failed in any run, else 1.
 """
 from __future__ import annotations
 
@@ -102,6 +102,15 @@ def main(argv: list[str]) -> int:
     print(f'|{"-" * (width + 2)}|-----:|---------:|')
     for key in sorted(runs, key=lambda k: (-failures[k], k)):
         print(f'| {key:<{width}} | {runs[key]:4d} | {failures[key]:8d} |')
+    per_file: dict[str, list[int]] = defaultdict(lambda: [0, 0, 0])   # tests, test runs, failures
+    for key in runs:
+        row = per_file[key.split('::')[0]]
+        row[0] += 1
+        row[1] += runs[key]
+        row[2] += failures[key]
+    print('\n| file | tests | test runs | failures |\n|------|------:|----------:|---------:|')
+    for file, (tests, test_runs, failed) in sorted(per_file.items()):
+        print(f'| {file} | {tests} | {test_runs} | {failed} |')
     total = sum(failures.values())
     print(f'\n{len(runs)} tests, {sum(runs.values())} test runs, {total} failures'
           f'{"" if args.keep else f" (reports in {out})"}')
