@@ -199,6 +199,8 @@ def ur5e(helper: Any, rosout: Collector,
 ROBOT_3R = load_robot('planar_3r')
 START_3R = (2.5, 1.5, math.radians(30.0))                 # paper Table 1: p and yaw of n
 GOAL_3R = (1.5, 2.5, math.atan2(0.7, 0.714))
+#: goal of a good plan that must be told apart from the paper plan by its last point
+OTHER_GOAL_3R = (GOAL_3R[0], GOAL_3R[1] - 0.01, GOAL_3R[2])
 
 
 def pose_3r(x: float, y: float, psi: float, frame: str = '') -> PoseStamped:
@@ -395,14 +397,13 @@ def test_failure_then_good_request(planar: PlannerUnderTest, rosout: Collector, 
     # the node keeps serving: the next good request succeeds, and its trajectory is the only
     # one published since (one publisher, reliable, in order: a failure's message would be
     # first, so the next message must be the good one; its goal differs from every bad one's)
-    goal = (GOAL_3R[0], GOAL_3R[1] - 0.01, GOAL_3R[2])
-    good = planar.plan(request(pose_3r(*START_3R), pose_3r(*goal)))
+    good = planar.plan(request(pose_3r(*START_3R), pose_3r(*OTHER_GOAL_3R)))
     assert len(good.plan.poses) > 0
     msgs = planar.wait_trajectories(n0 + 1)
     assert len(msgs) == n0 + 1
     arr = check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
     assert_allclose(arr.positions[0], ik_3r(*START_3R), atol=1e-8)
-    assert_allclose(fk_3r(arr.positions[-1:])[0], goal, atol=1e-8)
+    assert_allclose(fk_3r(arr.positions[-1:])[0], OTHER_GOAL_3R, atol=1e-8)
     wait_log(rosout, k0, planar.logger, INFO, 'plan: ')
     errors = rosout_since(rosout, k0, planar.logger, ERROR)
     assert len(errors) == 1, [e.msg for e in errors]        # one error line naming the cause
@@ -429,9 +430,13 @@ def test_tolerance_for_unreachable_pose(planar: PlannerUnderTest, rosout: Collec
     assert len(planar.plan(request(pose_3r(*START_3R), goal, tolerance=0.01)).plan.poses) == 0
     resp = planar.plan(request(pose_3r(*START_3R), goal, tolerance=0.1))
     assert len(resp.plan.poses) > 0
-    msgs = planar.wait_trajectories(n0 + 1)
-    assert len(msgs) == n0 + 1                       # only the successful request published
-    arr = check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
+    # only the successful request published: a sentinel plan (its own goal) must come right
+    # after it (one publisher, in order; a failed request's plan would look like this one)
+    assert len(planar.plan(request(pose_3r(*START_3R), pose_3r(*OTHER_GOAL_3R))).plan.poses) > 0
+    msgs = planar.wait_trajectories(n0 + 2)
+    assert len(msgs) == n0 + 2
+    assert_allclose(fk_3r(cv.joint_trajectory_to_arrays(msgs[-1]).positions[-1:])[0], OTHER_GOAL_3R, atol=1e-8)
+    arr = check_controller_contract(msgs[-2], ROBOT_3R.joint_names)
     # the nearest reachable pose: same x, y, phi in the plane
     assert_allclose(fk_3r(arr.positions[-1:])[0], GOAL_3R, atol=1e-6)
     check_line_phi_3r(arr)
@@ -447,10 +452,12 @@ def test_plan_timeout_fails_request_and_publishes_nothing(planar: PlannerUnderTe
         wait_log(rosout, k0, planar.logger, ERROR, 'timed out after 1e-06 s')
     finally:
         assert all(r.successful for r in planar.set_parameters(plan_timeout=5.0))
-    assert len(planar.plan(paper_request()).plan.poses) > 0
+    # the abandoned (paper) plan was never published: the next message is this one (own goal)
+    assert len(planar.plan(request(pose_3r(*START_3R), pose_3r(*OTHER_GOAL_3R))).plan.poses) > 0
     msgs = planar.wait_trajectories(n0 + 1)
-    assert len(msgs) == n0 + 1                       # the abandoned plan was never published
-    check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
+    assert len(msgs) == n0 + 1
+    arr = check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
+    assert_allclose(fk_3r(arr.positions[-1:])[0], OTHER_GOAL_3R, atol=1e-8)
 
 
 def test_state_and_parameters_served_during_a_long_plan(planar: PlannerUnderTest, helper: Any,
