@@ -13,7 +13,7 @@ import threading
 from collections.abc import Callable, Iterable
 from typing import Any, ClassVar
 
-from tools.process import DEFAULT_TIMEOUT, NodeProcess, ToolError, wait_until
+from tools.process import DEFAULT_TIMEOUT, NodeProcess, ToolError, _check_alive, wait_until
 
 __all__ = [
     'Collector',
@@ -129,6 +129,21 @@ class Collector:
                    watch=watch)
         with self._lock:
             return list(self.messages)
+
+    def wait_for_message(self, predicate: Callable[[Any], bool], start: int = 0,
+                         timeout: float = DEFAULT_TIMEOUT, *, what: str = 'a matching message',
+                         watch: Iterable[NodeProcess] = ()) -> int:
+        """Wait until a message at index >= ``start`` satisfies ``predicate``; return its index.
+
+        Count by content, not by position: e.g. wait for a sentinel's message, then every message
+        published before it (one publisher, reliable, in order) has arrived too.
+        """
+        def find() -> int | None:
+            with self._lock:
+                msgs = self.messages[start:]
+            return next((start + i + 1 for i, m in enumerate(msgs) if predicate(m)), None)
+
+        return wait_until(find, timeout, what=f'{what} on {self.topic}', watch=watch) - 1
 
 
 class StatusWatch:
@@ -328,3 +343,62 @@ def wait_reader_matched(process: NodeProcess, topic: str, n: int = 1,
                 wait_until(lambda p=pub: p.get_subscription_count() >= 1, timeout,
                            what=f'our publisher on {topic} to match a subscription', watch=watch)
     _barrier(runtime, topic, 'subscriptions', timeout, watch)
+
+
+def wait_discovered(node: Any, target: str, timeout: float = DEFAULT_TIMEOUT, *,
+                    watch: Iterable[NodeProcess] = ()) -> None:
+    """Barrier: return once the node ``target`` (e.g. ``'/trajectory_processor'``) has discovered
+    every publisher and subscription created so far in this process's rclpy context.
+
+    After it, the target's readers have matched our writers and its writers our readers, so
+    nothing we publish is dropped by a reader that did not know the writer yet (Fast DDS drops
+    what a volatile reader receives before it matched the writer), and nothing it publishes
+    misses our subscriptions. Needs no log line of the node: one round trip of a *new* client
+    of ``target/get_parameters`` (an empty request, nothing logged). A participant announces its
+    endpoints in creation order on two reliable, ordered built-in channels (one for writers,
+    one for readers), and the target matches each endpoint when it processes its announcement;
+    the request is taken only once the target matched our new request writer, the response
+    delivered only once it matched our new response reader, both announced after every
+    endpoint created before this call. (Our own side still has to see the target's endpoints:
+    ``wait_for_subscribers``, ``subscription.get_publisher_count()``.)
+    """
+    from rcl_interfaces.srv import GetParameters
+
+    client = node.create_client(GetParameters, f'{target}/get_parameters')
+    try:
+        warm_up_client(client, GetParameters.Request(names=[]), timeout, watch=watch)
+    finally:
+        node.destroy_client(client)
+
+
+def deliver(action: Callable[[], Callable[[Any], bool] | None], got: Collector, try_timeout: float,
+            timeout: float = DEFAULT_TIMEOUT, *, what: str = 'a message',
+            watch: Iterable[NodeProcess] = ()) -> int:
+    """Repeat ``action()`` until its message reaches ``got`` within ``try_timeout`` s.
+
+    For a link the test cannot observe (one node's publisher, another node's subscription): the
+    first message through proves that both ends have matched; after it nothing is lost
+    (reliable). ``action`` returns a predicate that recognises its own message (give each
+    attempt different content), or None for "any new message". A message of an earlier attempt
+    that arrives late therefore arrives *before* the one recognised (one publisher, in order);
+    the caller accounts for attempts that were lost or late (count by content, or from the
+    first message known to have gone through). Returns the number of attempts.
+    """
+    watch = list(watch)
+    attempts = 0
+
+    def attempt() -> bool:
+        nonlocal attempts
+        attempts += 1
+        n = len(got)
+        predicate = action() or (lambda _msg: True)
+        try:
+            got.wait_for_message(predicate, n, try_timeout, what=f'the message of attempt {attempts}',
+                                 watch=watch)
+            return True
+        except AssertionError:
+            _check_alive(watch)
+            return False
+
+    wait_until(attempt, timeout, what=f'{what} on {got.topic}', watch=watch)
+    return attempts
