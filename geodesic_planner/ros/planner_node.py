@@ -34,22 +34,23 @@ error line and exit code 1.
 Timing and the pipeline (parameters -> configuration, request -> messages):
 :mod:`geodesic_planner.ros.planning`.
 
-Executor model, on rclpy's public API: ``rclpy.experimental.EventsExecutor`` spun by the main
-thread (single-threaded, so plans are computed one at a time in request order, and each
-successful plan is published exactly once, by the request that computed it, before its response
-is sent). The plan service and ``/joint_states`` each have a MutuallyExclusiveCallbackGroup of
-their own, the parameter services the node's default group, so the node also runs unchanged on
-a MultiThreadedExecutor. A ``/joint_states`` message or a parameter request that arrives during
-a plan waits for it (about 10 ms, at most ``plan_timeout``); only the latest state matters. The
-configuration (robot, planner, limits) is an immutable
-:class:`~geodesic_planner.ros.planning.PlannerConfig` that a request reads once at its start; a
-parameter change builds a new one (or rejects it with a reason) under a lock.
+Executor model, on rclpy's public API: a MultiThreadedExecutor (3 threads) spun by the main
+thread serves the plan service, in a MutuallyExclusiveCallbackGroup of its own (plans are
+computed one at a time in request order, and each successful plan is published exactly once, by
+the request that computed it, before its response is sent), and the parameter services (the
+node's default group: a parameter change never waits behind a plan). ``/joint_states`` is taken
+by a hidden node (``_geodesic_planner_joint_states``) spun by an ``rclpy.experimental.EventsExecutor``
+in a thread of its own, so a state message never waits behind a plan either. The latest state is
+an immutable tuple swapped atomically; the configuration (robot, planner, limits) is an
+immutable :class:`~geodesic_planner.ros.planning.PlannerConfig` that a request reads once at its
+start; a parameter change builds a new one (or rejects it with a reason) under a lock.
 
-Why EventsExecutor, measured with ``benchmarks/node_latency.py`` (ur5e, /joint_states at 250 Hz,
-2 cores shared with other work; ``docs/benchmarks.md``, "Node on stock rclpy"):
-MultiThreadedExecutor (4 threads, the groups above): 5.5 plans/s with 4 clients, 178 ms node CPU
-per plan, p50 18.4 ms (it rebuilds its wait set in Python for every state message); EventsExecutor:
-57.6 plans/s, 13.7 ms CPU per plan, p50 11.6 ms (targets: p50 <= 15 ms, >= 50 plans/s).
+Why this split, measured with ``benchmarks/node_latency.py`` (ur5e, /joint_states at 250 Hz, 2
+shared cores; ``docs/benchmarks.md``, "Node on stock rclpy"): with /joint_states on the
+MultiThreadedExecutor too, it rebuilds its wait set in Python for every state message: 5.5
+plans/s with 4 clients, 178 ms node CPU per plan. Without them it serves 69 plans/s at p50
+11.8 ms (targets: p50 <= 15 ms, >= 50 plans/s); the EventsExecutor takes the states for a small
+fraction of a core.
 
 Bounded time: each plan runs in a worker thread and the service callback waits at most
 ``plan_timeout`` s for it. A plan still computing then is abandoned: the request fails, and a
@@ -73,7 +74,7 @@ from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -140,12 +141,22 @@ class GeodesicPlannerNode(Node):
             QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        self.joint_state_sub = self.create_subscription(
-            JointState, '/joint_states', self._on_joint_state,
+        # /joint_states (up to hundreds of Hz) is taken by a hidden node of its own, spun by an
+        # EventsExecutor in a thread of its own (start_state_thread): a state message never waits
+        # behind a plan, and it costs the plan executor nothing. The hidden node takes no global
+        # arguments (a __node remap must not rename it too), so the topic is resolved here,
+        # with the user's remappings.
+        self.state_node = Node(f'_{self.get_name()}_joint_states', namespace=self.get_namespace(),
+                               context=self.context, use_global_arguments=False,
+                               start_parameter_services=False)
+        self.joint_state_sub = self.state_node.create_subscription(
+            JointState, self.resolve_topic_name('/joint_states'), self._on_joint_state,
             QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                        reliability=ReliabilityPolicy.BEST_EFFORT,
-                       durability=DurabilityPolicy.VOLATILE),
-            callback_group=MutuallyExclusiveCallbackGroup())
+                       durability=DurabilityPolicy.VOLATILE))
+        self._state_executor: EventsExecutor | None = None
+        self._state_thread: threading.Thread | None = None
+        self._states_stop = threading.Event()
         self.plan_srv = self.create_service(
             GetPlan, '~/plan', self._on_plan,
             qos_profile=QoSProfile(depth=64, history=HistoryPolicy.KEEP_LAST,
@@ -194,6 +205,37 @@ class GeodesicPlannerNode(Node):
         if now - self._last_warn.get(kind, -math.inf) >= period:
             self._last_warn[kind] = now
             self.get_logger().warning(text)
+
+    def start_state_thread(self) -> None:
+        """Serve /joint_states from a thread of its own (see the constructor)."""
+        self._state_executor = EventsExecutor(context=self.context)
+        self._state_executor.add_node(self.state_node)
+        self._state_thread = threading.Thread(target=self._spin_states, name='joint_states', daemon=True)
+        self._state_thread.start()
+
+    def _spin_states(self) -> None:
+        executor = self._state_executor
+        assert executor is not None
+        while self.context.ok() and not self._states_stop.is_set():
+            try:
+                executor.spin_once(timeout_sec=0.1)
+            except ExternalShutdownException:
+                return
+            except Exception as err:  # noqa: BLE001 - boundary: one bad message never ends the thread
+                if not self.context.ok():
+                    return
+                self.get_logger().error(f'/joint_states: internal error: {type(err).__name__}: {err}')
+
+    def destroy_node(self) -> None:
+        """Stop the state thread, then destroy both nodes."""
+        # The EventsExecutor must not be shut down while its thread spins it: stop, join, shut down.
+        self._states_stop.set()
+        if self._state_thread is not None:
+            self._state_thread.join(timeout=2.0)
+        if self._state_executor is not None and (self._state_thread is None or not self._state_thread.is_alive()):
+            self._state_executor.shutdown(timeout_sec=1.0)
+        self.state_node.destroy_node()
+        super().destroy_node()
 
     def _on_joint_state(self, msg: JointState) -> None:
         names = self._config.joint_names
@@ -332,9 +374,10 @@ def main(args: list[str] | None = None) -> int:
         node = None
         executor = None
         try:
-            executor = EventsExecutor()
+            executor = MultiThreadedExecutor(num_threads=3)
             node = GeodesicPlannerNode()
             executor.add_node(node)
+            node.start_state_thread()
             runtime.spin_until(stop, executor, node.get_logger())
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
