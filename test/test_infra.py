@@ -205,7 +205,10 @@ def test_stop_escalates_to_sigkill_when_sigint_and_sigterm_ignored(tmp_path: Pat
 
 def test_stop_with_sigint_only_when_child_exits_cleanly(tmp_path: Path) -> None:
     code = textwrap.dedent("""\
-        import sys, time
+        import signal, sys, time
+        # Python leaves SIGINT ignored if it was ignored when it started (a suite run in the
+        # background, e.g. `cmd &` from a script): install the KeyboardInterrupt handler anyway
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         try:
             print('ready', flush=True)    # inside the try: a SIGINT right after it is handled
             while True:
