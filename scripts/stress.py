@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import shlex
+import signal
 import subprocess
 import sys
 import tempfile
@@ -66,6 +67,9 @@ def outcomes(report: Path) -> dict[str, bool]:
 
 def main(argv: list[str]) -> int:
     args, pytest_args = parse_args(argv)
+    # started in the background (`cmd &`), SIGINT is ignored and so it would be in every test
+    # process: give the runs the disposition of a foreground run
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     out = args.keep or Path(tempfile.mkdtemp(prefix='gp_stress_'))
     out.mkdir(parents=True, exist_ok=True)
     hogs = [subprocess.Popen([sys.executable, '-c', HOG, str(MAX_HOG_S)]) for _ in range(args.k)]
