@@ -313,9 +313,10 @@ def measure(bench: Bench, robot: str, n_requests: int, warmup: int, per_client: 
 
 def breakdown(robot: str, n: int) -> dict[str, float]:
     """Median stage times (ms) of the node's compute_plan in this process, no ROS transport."""
-    from geodesic_planner.ros import planner_node as pn
+    from geodesic_planner.ros import params
+    from geodesic_planner.ros import planning as pn
 
-    values = {name: spec[0] for name, spec in pn.PARAMETERS.items()}
+    values = params.defaults(params.PLANNER_PARAMETERS)
     values['robot'] = robot
     config = pn.build_config(values)
     reqs = requests_for(robot, n + 3, seed=2)

@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""Benchmark of GeodesicPlanner.plan against baselines measured in the same run (issue 6).
+"""Benchmark of GeodesicPlanner.plan against baselines measured in the same run.
 
 Run:  .venv/bin/python benchmarks/run.py [--repeats 30] [--quick] [--markdown docs/benchmarks.md]
 
 Per case it prints plan time (median and p90 over repeated runs after warm-up, wall clock and this
 thread's CPU time), solver iterations, mesh size and accuracy: the tool-path error against the
-exact oracle (line + slerp at the same s, NOTES.md §4) where one exists, else the geodesic ODE
+exact oracle (line + slerp at the same s, docs/maths.md#oracles) where one exists, else the geodesic ODE
 residual. Baselines timed beside it: a plain numpy prototype of the same BVP (solve_bvp with a
 finite-difference Jacobian, 30 nodes, tol 1e-6, joint-space linear guess), the naive eq. (4)
 version (Christoffel symbols from finite differences of G, per-node loop), and Cartesian
@@ -30,7 +30,7 @@ from scipy.integrate import solve_bvp
 from geodesic_planner import GeodesicPlanner, load_robot
 from geodesic_planner.core.baselines import cartesian_ik_path
 from geodesic_planner.core.geodesic import GeodesicEquations
-from geodesic_planner.core.kinematics import PRISMATIC, REVOLUTE, chain_from_dh
+from geodesic_planner.core.kinematics import REVOLUTE, chain_from_dh
 from geodesic_planner.io.requests import load_request
 from geodesic_planner.core.urdf import regular_home
 from geodesic_planner.core.transforms import line_slerp, make_transform, pose_error, so3_exp
@@ -95,7 +95,7 @@ def ode_residual(path, samples: int = 1001) -> float:
     """Max relative geodesic residual ‖G q'' + Jᵀ Ω H‖ / ‖Jᵀ Ω H‖ along the path (spline q'')."""
     s = np.linspace(0.0, 1.0, samples)
     res = path.residual(s)
-    q, dq, a, _ = path.evaluate(s)
+    q, _dq, a, _ = path.evaluate(s)
     G = path.metric.tensor(path.robot, q)
     scale = np.linalg.norm(np.einsum('nij,nj->ni', G, a), axis=-1).max()
     return float(res.max() / max(scale, 1e-300))

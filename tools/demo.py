@@ -5,46 +5,44 @@
 namespace). Steps:
 
 1. start ``geodesic_planner_node`` (``-p robot:=ROBOT``) and ``trajectory_processor_node``
-   (``-p velocity_scaling:=0.5 -p sample_period:=0.01 -p bag_path:=DIR/bag``) with Popen, each
-   in its own process group, output in ``DIR/logs/``;
-2. wait for ``/geodesic_planner/plan`` and for the processor's subscription;
+   (``-p velocity_scaling:=0.5 -p sample_period:=0.01 -p bag_path:=DIR/bag``)
+   (:func:`tools.process.popen_node`), output in ``DIR/logs/``;
+2. wait for ``/geodesic_planner/plan``, then until both publishers will deliver to us and the
+   planner's to the processor (:func:`tools.graph.wait_writer_matched`: the graph and replies,
+   never log lines);
 3. call the service (nav_msgs/srv/GetPlan) with the paper's planar 3R poses (for another robot:
    from its home pose to the pose of home + 0.3 rad (or m) on every joint);
 4. receive the trajectory on ``/geodesic_planner/joint_trajectory`` and the processed one on
    ``/trajectory_processor/joint_trajectory``;
 5. stop the processor with SIGINT (the bag is closed), then the planner;
-6. read both trajectories back from the bag (:func:`geodesic_planner.io.bag.read_trajectories`),
+6. read both trajectories back from the bag (:func:`geodesic_planner.io.bags.read_trajectories`),
    print a summary and write ``DIR/summary.json`` and ``DIR/trajectory.png``.
 
 A node that dies or a wait that times out prints the node's log tail and exits with 1.
 
-It is a ROS client, so it lives in ``geodesic_planner/ros/``; rclpy is imported inside
-:func:`run_demo`, so its pure helpers can be imported and tested without ROS.
+Demo tooling, not part of the installed library: run from the repository root (``demo.sh`` sets
+``PYTHONPATH``). rclpy is imported inside :func:`run_demo`, so the pure helpers can be imported
+and tested without ROS.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import math
-import os
 import shutil
-import signal
-import subprocess
 import sys
-import sysconfig
-import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from tools import netns
 from geodesic_planner.core.errors import GeodesicPlannerError
+from tools import netns
+from tools.process import NodeProcess, ToolError, popen_node, wait_until
 
-__all__ = ['DemoError', 'NodeProcess', 'main', 'paper_poses', 'run_demo', 'segment_deviation',
+__all__ = ['DemoError', 'main', 'paper_poses', 'run_demo', 'segment_deviation',
            'trajectory_summary']
 
 PLAN_SERVICE = '/geodesic_planner/plan'
@@ -121,7 +119,7 @@ def trajectory_summary(t: np.ndarray, q: np.ndarray, dq: np.ndarray | None, robo
     dev = segment_deviation(tool, start[:3, 3], goal[:3, 3])
     peak = np.max(np.abs(dq), axis=0) if dq is not None and len(dq) else np.full(q.shape[1], np.nan)
     return {
-        'points': int(len(t)),
+        'points': len(t),
         'duration_s': float(t[-1] - t[0]) if len(t) > 1 else 0.0,
         'peak_joint_speed': [float(v) for v in peak],
         'max_tool_path_deviation_m': float(dev.max()),
@@ -132,84 +130,14 @@ def trajectory_summary(t: np.ndarray, q: np.ndarray, dq: np.ndarray | None, robo
 
 # --------------------------------------------------------------------------- processes
 
-class NodeProcess:
-    """A node started in its own process group; output in a log file."""
-
-    def __init__(self, name: str, argv: list[str], log_path: Path, env: dict[str, str]) -> None:
-        self.name = name
-        self.argv = argv
-        self.log_path = log_path
-        log_path.parent.mkdir(parents=True, exist_ok=True)
-        with open(log_path, 'wb') as log:
-            group: dict[str, Any] = ({'process_group': 0} if sys.version_info >= (3, 11)
-                                     else {'start_new_session': True})
-            self.popen = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log,
-                                          stderr=subprocess.STDOUT, env=env, **group)
-
-    def alive(self) -> bool:
-        return self.popen.poll() is None
-
-    def log_text(self) -> str:
-        try:
-            return self.log_path.read_text(errors='replace')
-        except FileNotFoundError:
-            return ''
-
-    def log_tail(self, lines: int = 30) -> str:
-        return '\n'.join(self.log_text().splitlines()[-lines:])
-
-    def stop(self, timeout: float = 10.0) -> int:
-        """SIGINT, then SIGTERM, then SIGKILL to the group, ``timeout`` s apart; the exit code."""
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
-            if self.popen.poll() is not None:
-                break
-            try:
-                os.killpg(self.popen.pid, sig)
-            except ProcessLookupError:
-                break
-            try:
-                self.popen.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                continue
-        return self.popen.wait(timeout=timeout)
-
-
-def _start(name: str, executable: str, params: dict[str, str], log_dir: Path) -> NodeProcess:
-    path = Path(sysconfig.get_path('scripts')) / executable
-    if not path.exists():
-        raise DemoError(f'console script {path} not found: run bash scripts/setup_env.sh')
-    argv = [str(path), '--ros-args']
-    for key, value in params.items():
-        argv += ['-p', f'{key}:={value}']
-    env = dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0',
-               ROS_LOG_DIR=str(log_dir / 'ros'))
-    return NodeProcess(name, argv, log_dir / f'{name}.log', env)
-
-
-def _wait(predicate: Callable[[], Any], timeout: float, what: str, nodes: Sequence[NodeProcess]) -> Any:  # noqa: ANN401
-    deadline = time.monotonic() + timeout
-    while True:
-        value = predicate()
-        if value:
-            return value
-        for node in nodes:
-            if not node.alive():
-                raise DemoError(f'{node.name} exited with {node.popen.returncode} while waiting '
-                                f'for {what}')
-        if time.monotonic() >= deadline:
-            raise DemoError(f'timed out after {timeout:g} s waiting for {what}')
-        time.sleep(0.02)
+def _start(name: str, executable: str, params: dict[str, Any], log_dir: Path) -> NodeProcess:
+    try:
+        return popen_node(executable, params=params, name=name, log_dir=log_dir)
+    except ToolError as err:
+        raise DemoError(str(err)) from None
 
 
 # --------------------------------------------------------------------------- output
-
-@dataclass
-class _Series:
-    label: str
-    t: np.ndarray
-    q: np.ndarray
-    dq: np.ndarray | None
-
 
 def _reorder(names: Sequence[str], robot_names: Sequence[str], a: np.ndarray | None) -> np.ndarray | None:
     if a is None:
@@ -218,35 +146,6 @@ def _reorder(names: Sequence[str], robot_names: Sequence[str], a: np.ndarray | N
     if missing:
         raise DemoError(f'trajectory lacks joints {missing} (has {list(names)})')
     return a[:, [list(names).index(n) for n in robot_names]]
-
-
-def plot(series: Sequence[_Series], joint_names: Sequence[str], path: Path, title: str) -> None:
-    """Joint positions and velocities vs time, one colour per joint, one line style per series."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-    styles = [dict(ls='none', marker='o', ms=3, alpha=0.6), dict(ls='-', lw=1.5)]
-    colours = plt.rcParams['axes.prop_cycle'].by_key()['color']
-    for k, s in enumerate(series):
-        for j, name in enumerate(joint_names):
-            c = colours[j % len(colours)]
-            step = max(1, len(s.t) // 80) if k == 0 else 1
-            axes[0].plot(s.t[::step], s.q[::step, j], color=c, label=f'{name} ({s.label})',
-                         **styles[k % 2])
-            if s.dq is not None:
-                axes[1].plot(s.t[::step], s.dq[::step, j], color=c, **styles[k % 2])
-    axes[0].set_ylabel('position (rad or m)')
-    axes[1].set_ylabel('velocity (rad/s or m/s)')
-    axes[1].set_xlabel('time from start (s)')
-    axes[0].legend(fontsize=7, ncol=2)
-    for ax in axes:
-        ax.grid(True, alpha=0.3)
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def _fmt_speeds(v: Sequence[float]) -> str:
@@ -285,19 +184,15 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
     bag_dir = _prepare_output(output)
     log_dir = output / 'logs'
 
-    import rclpy
     from nav_msgs.srv import GetPlan
-    from rclpy.context import Context
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from trajectory_msgs.msg import JointTrajectory
 
     from geodesic_planner.ros.conversions import joint_trajectory_to_arrays, matrix_to_pose_stamped
-    from geodesic_planner.ros.matching import logged_matches
+    from tools.graph import Collector, RclpyRuntime, StatusWatch, wait_for_service, wait_writer_matched
 
     nodes: list[NodeProcess] = []
-    context = Context()
-    executor = node = spinner = None
+    runtime = None
     try:
         say(f'starting planner node (geodesic_planner_node -p robot:={robot_name})...')
         planner = _start('planner', 'geodesic_planner_node', {'robot': robot_name}, log_dir)
@@ -305,51 +200,32 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
         say(f'starting trajectory processor node (velocity_scaling {VELOCITY_SCALING}, '
             f'sample_period {SAMPLE_PERIOD} s, bag {bag_dir})...')
         processor = _start('processor', 'trajectory_processor_node',
-                           {'velocity_scaling': repr(VELOCITY_SCALING),
-                            'sample_period': repr(SAMPLE_PERIOD), 'bag_path': str(bag_dir)}, log_dir)
+                           {'velocity_scaling': VELOCITY_SCALING, 'sample_period': SAMPLE_PERIOD,
+                            'bag_path': str(bag_dir)}, log_dir)
         nodes.append(processor)
 
-        rclpy.init(context=context)
-        node = rclpy.create_node(f'geodesic_planner_demo_{os.getpid()}', context=context)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-
-        def spin() -> None:
-            try:
-                executor.spin()
-            except ExternalShutdownException:
-                pass
-        spinner = threading.Thread(target=spin, name='demo-executor', daemon=True)
-        spinner.start()
-
+        runtime = RclpyRuntime('geodesic_planner_demo')
+        node = runtime.node
         qos = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
-        received: dict[str, list[Any]] = {PLANNED_TOPIC: [], PROCESSED_TOPIC: []}
-        lock = threading.Lock()
-
-        def keeper(topic: str) -> Callable[[Any], None]:
-            def cb(msg: Any) -> None:  # noqa: ANN401
-                with lock:
-                    received[topic].append(msg)
-            return cb
-        subs = {topic: node.create_subscription(JointTrajectory, topic, keeper(topic), qos)
-                for topic in received}
+        # Subscriptions before any client: wait_writer_matched relies on that order.
+        received = {topic: Collector(node, JointTrajectory, topic, qos)
+                    for topic in (PLANNED_TOPIC, PROCESSED_TOPIC)}
+        status = StatusWatch(node)
         client = node.create_client(GetPlan, PLAN_SERVICE)
 
         t0 = time.monotonic()
-        _wait(client.service_is_ready, timeout, f'service {PLAN_SERVICE}', nodes)
+        wait_for_service(client, timeout, watch=nodes)
         say(f'planner ready: {PLAN_SERVICE} ({time.monotonic() - t0:.1f} s)')
-        # The processor subscribes to the planner's topic (ours is the other subscriber), and we
-        # must be matched with both publishers before asking: the topics are volatile.
-        _wait(lambda: node.count_subscribers(PLANNED_TOPIC) >= 2, timeout,
-              f"the processor's subscription to {PLANNED_TOPIC}", nodes)
-        for topic, sub in subs.items():
-            _wait(lambda s=sub: s.get_publisher_count() >= 1, timeout, f'a publisher on {topic}', nodes)
-        # ... and the publishers must have matched us (the writer side can lag behind the reader).
-        _wait(lambda: logged_matches(planner.log_text(), PLANNED_TOPIC) >= 2, timeout,
-              f"the planner's publisher on {PLANNED_TOPIC} matched with 2 subscriptions", nodes)
-        _wait(lambda: logged_matches(processor.log_text(), PROCESSED_TOPIC) >= 1, timeout,
-              f"the processor's publisher on {PROCESSED_TOPIC} matched with us", nodes)
+        # The topics are volatile: the planner's publisher must have matched the processor and
+        # us, the processor's publisher us, before the plan is asked for.
+        wait_writer_matched(planner, PLANNED_TOPIC, 2, timeout, watch=nodes, runtime=runtime)
+        wait_writer_matched(processor, PROCESSED_TOPIC, 1, timeout, watch=nodes, runtime=runtime)
+        # Between the two nodes only they know: each reports its side of the match on /diagnostics.
+        status.wait('/trajectory_processor', 'input publishers matched', lambda v: int(v) >= 1, timeout,
+                    watch=nodes)
+        status.wait('/geodesic_planner', 'trajectory subscriptions matched', lambda v: int(v) >= 2, timeout,
+                    watch=nodes)
         say(f'processor ready: subscribed to {PLANNED_TOPIC}, publishing {PROCESSED_TOPIC}')
 
         request = GetPlan.Request()
@@ -359,21 +235,17 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
             + ', goal p=' + np.array2string(goal_T[:3, 3], precision=3))
         t_call = time.monotonic()
         future = client.call_async(request)
-        _wait(future.done, timeout, f'the response of {PLAN_SERVICE}', nodes)
+        wait_until(future.done, timeout, what=f'the response of {PLAN_SERVICE}', watch=nodes)
         latency_ms = (time.monotonic() - t_call) * 1e3
         response = future.result()
         if response is None or not response.plan.poses:
             raise DemoError(f'the planner returned an empty plan (see its log: {planner.log_path})')
 
-        def first(topic: str) -> Any:  # noqa: ANN401
-            with lock:
-                return received[topic][0] if received[topic] else None
-        planned = _wait(lambda: first(PLANNED_TOPIC), timeout, f'a trajectory on {PLANNED_TOPIC}', nodes)
+        planned = received[PLANNED_TOPIC].wait_for(1, timeout, watch=nodes)[0]
         arr = joint_trajectory_to_arrays(planned)
         say(f'plan received: {len(arr.t)} points, {arr.t[-1]:.3f} s '
             f'(service answered in {latency_ms:.0f} ms, tool path {len(response.plan.poses)} poses)')
-        processed = _wait(lambda: first(PROCESSED_TOPIC), timeout,
-                          f'a trajectory on {PROCESSED_TOPIC}', nodes)
+        processed = received[PROCESSED_TOPIC].wait_for(1, timeout, watch=nodes)[0]
         arr2 = joint_trajectory_to_arrays(processed)
         say(f'processed trajectory received: {len(arr2.t)} points, {arr2.t[-1]:.3f} s')
 
@@ -389,28 +261,29 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
         for proc in nodes:
             if proc.alive():
                 proc.stop(timeout=5.0)
-        reason = 'interrupted' if isinstance(exc, KeyboardInterrupt) else f'{type(exc).__name__}: {exc}'
+        # The first line only: a ToolError also quotes the log tails, printed below.
+        first_line = (str(exc).splitlines() or [''])[0]
+        reason = ('interrupted' if isinstance(exc, KeyboardInterrupt)
+                  else f'{type(exc).__name__}: {first_line}')
         say(f'demo failed ({reason}); node logs:')
         for proc in nodes:
-            tail = proc.log_tail()
-            say(f'--- {proc.name}: exit code {proc.popen.returncode}, log {proc.log_path} ---')
+            tail = proc.log_tail(30)
+            say(f'--- {proc.describe()} ---')
             say(tail if tail else '(empty log)')
+        if isinstance(exc, ToolError):
+            raise DemoError(first_line) from None
         raise
     finally:
-        if executor is not None:
-            executor.shutdown(timeout_sec=2.0)
-        if spinner is not None:
-            spinner.join(timeout=2.0)
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown(context=context)
+        if runtime is not None:
+            runtime.shutdown()
 
     return _summarise(bag_dir, output, robot, start_T, goal_T, latency_ms, say)
 
 
 def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # noqa: ANN401
                goal_T: np.ndarray, latency_ms: float, say: Callable[[str], None]) -> dict[str, Any]:
-    from geodesic_planner.io.bag import read_trajectories
+    from geodesic_planner.io.bags import read_trajectories
+    from geodesic_planner.io.plotting import plot_trajectories
 
     records = read_trajectories(bag_dir)
     by_topic: dict[str, Any] = {}
@@ -422,7 +295,7 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
                         f'(topics: {", ".join(sorted(by_topic)) or "none"})')
     say(f'bag read back: {len(records)} trajectories in {bag_dir}')
 
-    series, parts = [], {}
+    columns, parts = [], {}
     for key, topic, label in (('planned', PLANNED_TOPIC, 'planned'),
                               ('processed', PROCESSED_TOPIC, f'processed x{VELOCITY_SCALING:g}')):
         rec = by_topic[topic]
@@ -431,7 +304,7 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
         q = _reorder(rec.joint_names, robot.joint_names, rec.positions)
         dq = _reorder(rec.joint_names, robot.joint_names, rec.velocities)
         parts[key] = {'topic': topic, **trajectory_summary(rec.t, q, dq, robot, start_T, goal_T)}
-        series.append(_Series(label, rec.t, q, dq))
+        columns.append((label, rec))
 
     summary = {
         'robot': robot.name,
@@ -445,8 +318,8 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
         **parts,
     }
     (output / 'summary.json').write_text(json.dumps(summary, indent=1) + '\n')
-    plot(series, robot.joint_names, output / 'trajectory.png',
-         f'{robot.name}: geodesic trajectory, planned and processed (from the bag)')
+    plot_trajectories(output / 'trajectory.png', columns,
+                      title=f'{robot.name}: geodesic trajectory, planned and processed (from the bag)')
 
     p, r = parts['planned'], parts['processed']
     say('')

@@ -120,10 +120,14 @@ def draw(output: Path, root: Path = ROOT) -> None:
             src = src.rsplit('.', 1)[0]
         if src in pos and dst in pos and src != dst:
             (x1, y1), (x2, y2) = pos[src], pos[dst]
-            ax.annotate('', xy=(x2, y2 + 0.12), xytext=(x1, y1 - 0.12),
-                        arrowprops={'arrowstyle': '->', 'lw': 0.6, 'alpha': 0.35,
-                                    'color': 'tab:red' if not imp.top_level else 'grey',
-                                    'linestyle': '--' if not imp.top_level else '-'})
+            style = {'arrowstyle': '->', 'lw': 0.6, 'alpha': 0.4,
+                     'color': 'tab:red' if not imp.top_level else 'grey',
+                     'linestyle': '--' if not imp.top_level else '-'}
+            if y1 == y2:   # within a layer: an arc below the row
+                style['connectionstyle'] = f'arc3,rad={0.25 if x2 > x1 else -0.25}'
+                ax.annotate('', xy=(x2, y2 - 0.1), xytext=(x1, y1 - 0.1), arrowprops=style)
+            else:
+                ax.annotate('', xy=(x2, y2 + 0.12), xytext=(x1, y1 - 0.12), arrowprops=style)
     for m, (x, y) in pos.items():
         layer = layer_of(m) or 'core'
         label = m.split('.', 2)[2]
@@ -134,7 +138,7 @@ def draw(output: Path, root: Path = ROOT) -> None:
         ax.text(x, y, f'{layer}/', ha='right' if layer != 'cli' else 'left', va='center',
                 fontsize=11, fontweight='bold')
     ax.set_xlim(-2.2, 15.6)
-    ax.set_ylim(-0.6, 3.6)
+    ax.set_ylim(-1.1, 3.6)
     ax.axis('off')
     ax.set_title('geodesic_planner: modules by layer; arrows point from importer to imported '
                  '(dashed red: a deferred, function-local import)', fontsize=10)

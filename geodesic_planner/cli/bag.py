@@ -11,7 +11,7 @@ Usage::
 per processed trajectory: joint positions, velocities and accelerations against time, the planner's
 trajectory (input topic, markers) over the processor's (output topic, lines); trajectories on
 other JointTrajectory topics, or inputs without an output, get a PNG of their own. ``repair``
-rebuilds a bag whose recording was killed (see :func:`geodesic_planner.io.bag.repair`).
+rebuilds a bag whose recording was killed (see :func:`geodesic_planner.io.bags.repair`).
 Errors print one line ``ERROR: ...`` and exit with 1.
 """
 from __future__ import annotations
@@ -23,8 +23,9 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..io.bag import BagInfo, TrajectoryRecord, bag_info, read_trajectories, repair
-from ..core.errors import GeodesicPlannerError
+from ..core.errors import BagError, GeodesicPlannerError
+from ..io.bags import BagInfo, TrajectoryRecord, bag_info, read_trajectories, repair
+from ..io.plotting import plot_trajectories
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -92,41 +93,6 @@ def pair_trajectories(
     return pairs
 
 
-def _plot_one(path: Path, before: TrajectoryRecord | None, after: TrajectoryRecord | None, title: str) -> None:
-    """3 x 2 grid: rows position/velocity/acceleration; left the input, right the output."""
-    import matplotlib
-
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(3, 2, figsize=(12, 8), sharey='row', squeeze=False)
-    labels = ('position [rad or m]', 'velocity [/s]', 'acceleration [/s²]')
-    colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
-    for col, (rec, heading) in enumerate(((before, 'before processing'), (after, 'after processing'))):
-        axes[0, col].set_title(f'{heading}: {rec.topic}' if rec is not None else f'{heading}: none', fontsize=9)
-        if rec is None:
-            continue
-        style = dict(marker='o', ms=3, lw=0.8) if rec.t.size <= 200 else dict(lw=1.5)
-        for row, values in enumerate((rec.positions, rec.velocities, rec.accelerations)):
-            if values is None:
-                axes[row, col].text(0.5, 0.5, 'not in message', ha='center', va='center',
-                                    transform=axes[row, col].transAxes, color='gray')
-                continue
-            for j, name in enumerate(rec.joint_names):
-                axes[row, col].plot(rec.t, values[:, j], color=colors[j % len(colors)], label=name, **style)
-    for row, label in enumerate(labels):
-        axes[row, 0].set_ylabel(label)
-        for col in range(2):
-            axes[row, col].grid(True, alpha=0.3)
-    for col in range(2):
-        axes[-1, col].set_xlabel('time from start [s]')
-    axes[0, 0 if before is not None else 1].legend(fontsize=7, loc='best')
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-
-
 def plot_bag(
     bag: str | Path,
     output_dir: str | Path,
@@ -142,8 +108,6 @@ def plot_bag(
     Raises:
         BagError: unreadable bag or no JointTrajectory in it.
     """
-    from ..core.errors import BagError
-
     records = read_trajectories(bag)
     if not records:
         msg = f'no trajectory_msgs/msg/JointTrajectory messages in {bag}'
@@ -168,7 +132,7 @@ def plot_bag(
         problems = (before.problems if before is not None else ()) + (after.problems if after is not None else ())
         title = f'trajectory {k}: ' + ' -> '.join(parts) + (f'\nINVALID: {problems[0]}' if problems else '')
         path = out_dir / f'trajectory_{k:02d}.png'
-        _plot_one(path, before, after, title)
+        plot_trajectories(path, [('before processing', before), ('after processing', after)], title=title)
         written.append(path)
     return written
 

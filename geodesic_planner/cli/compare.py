@@ -30,11 +30,16 @@ import math
 import os
 import sys
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..core.errors import GeodesicPlannerError, RequestError
+
+if TYPE_CHECKING:
+    from ..core.kinematics import Chain
+    from ..core.path import JointPath
+    from ..io.requests import PlanRequest
 
 #: 13-point central stencil offsets used for end-effector derivatives.
 _OFFSETS = np.arange(-6, 7, dtype=float)
@@ -57,7 +62,7 @@ def _vee(S: np.ndarray) -> np.ndarray:
     return np.stack([A[..., 2, 1], A[..., 0, 2], A[..., 1, 0]], axis=-1)
 
 
-def ee_profile(robot: Any, path: Any, s: np.ndarray) -> dict[str, np.ndarray]:
+def ee_profile(robot: Chain, path: JointPath, s: np.ndarray) -> dict[str, np.ndarray]:
     """Joint and end-effector positions and s-derivatives (up to third) along a path.
 
     Args:
@@ -133,13 +138,14 @@ def line_errors(profile: dict[str, np.ndarray], T_a: np.ndarray, T_b: np.ndarray
             'max_orientation_error_vs_line_slerp_rad': float(dr.max())}
 
 
-def _timing(path: Any) -> dict[str, float]:
+def _timing(path: JointPath) -> dict[str, float]:
     traj = path.timed()
     return {'duration_s': traj.duration, 'topp_duration_s': traj.topp_duration,
             'optimality_ratio': traj.optimality_ratio}
 
 
-def compare_request(request: Any, samples: int = 1001, n_via: int = 11) -> tuple[dict[str, Any], dict[str, Any]]:
+def compare_request(request: PlanRequest, samples: int = 1001,
+                    n_via: int = 11) -> tuple[dict[str, Any], dict[str, Any]]:
     """Plan a parsed request with both methods.
 
     Args:

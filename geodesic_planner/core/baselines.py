@@ -19,14 +19,16 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from .errors import IKError, RequestError
+from .kinematics import Chain
 from .path import JointPath, check_order, check_s
 from .transforms import check_transform, line_slerp, so3_log
 
 #: ``ik(robot, T_target (4, 4), seed (dof,)) -> q (dof,)``.
-IKFunction = Callable[[Any, np.ndarray, np.ndarray], np.ndarray]
+IKFunction = Callable[[Chain, np.ndarray, np.ndarray], np.ndarray]
 
 #: Default largest accepted IK residual at a via point / sample (weighted embedding distance,
 #: m-equivalent). Arms with fewer than 6 joints follow the nearest reachable pose of the line.
@@ -39,7 +41,7 @@ def _default_ik(tolerance: float) -> IKFunction:
     Restarts are disabled so the branch stays the one the seed leads to; the nearest reachable
     pose is accepted up to ``tolerance`` (arms with fewer than 6 joints).
     """
-    def ik(robot: Any, T: np.ndarray, seed: np.ndarray) -> np.ndarray:
+    def ik(robot: Chain, T: np.ndarray, seed: np.ndarray) -> np.ndarray:
         from .ik import solve_ik
         try:
             sol = solve_ik(robot, T, seed, tolerance=tolerance, restarts=0, raise_on_failure=False)
@@ -52,7 +54,7 @@ def _default_ik(tolerance: float) -> IKFunction:
     return ik
 
 
-def _unwrap(robot: Any, q: np.ndarray, ref: np.ndarray) -> np.ndarray:
+def _unwrap(robot: Chain, q: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """Shift revolute joints of ``q`` by multiples of 2 pi towards ``ref`` when within limits."""
     types = getattr(robot, 'joint_types', None)
     if types is None:
@@ -88,7 +90,7 @@ class _SplinePath(JointPath):
 
     _spline: Any
 
-    def evaluate(self, s: Any, order: int = 3) -> tuple[np.ndarray, ...]:
+    def evaluate(self, s: npt.ArrayLike, order: int = 3) -> tuple[np.ndarray, ...]:
         """q, dq/ds, d2q/ds2, d3q/ds3 at ``s`` (1-D in [0, 1]); each (len(s), dof); rad or m.
 
         At a knot the one-sided derivatives of the segment to its right are returned (of the
@@ -112,7 +114,7 @@ class PolynomialPath(_SplinePath):
         end_velocity: 'constant' (paper) or 'zero'.
     """
 
-    def __init__(self, robot: Any, s_via: np.ndarray, q_via: np.ndarray, dq_via: np.ndarray,
+    def __init__(self, robot: Chain, s_via: np.ndarray, q_via: np.ndarray, dq_via: np.ndarray,
                  twist: np.ndarray, end_velocity: str) -> None:
         self.robot = robot
         self.s_via = np.asarray(s_via, dtype=float)
@@ -146,7 +148,7 @@ class CartesianIKPath(_SplinePath):
         q_samples: IK solutions at the samples, shape (samples, dof).
     """
 
-    def __init__(self, robot: Any, s_samples: np.ndarray, q_samples: np.ndarray) -> None:
+    def __init__(self, robot: Chain, s_samples: np.ndarray, q_samples: np.ndarray) -> None:
         self.robot = robot
         self.s_samples = np.asarray(s_samples, dtype=float)
         self.q_samples = np.asarray(q_samples, dtype=float)
@@ -159,8 +161,8 @@ class CartesianIKPath(_SplinePath):
         return self.s_samples
 
 
-def _ik_along_line(robot: Any, T_start: np.ndarray, T_goal: np.ndarray, s: np.ndarray,
-                   q_start: Any, q_goal: Any, ik: IKFunction) -> np.ndarray:
+def _ik_along_line(robot: Chain, T_start: np.ndarray, T_goal: np.ndarray, s: np.ndarray,
+                   q_start: npt.ArrayLike | None, q_goal: npt.ArrayLike | None, ik: IKFunction) -> np.ndarray:
     """IK at line + slerp poses ``s``, each seeded with the previous solution."""
     dof = int(getattr(robot, 'dof', len(robot.joint_names)))
     poses = line_slerp(T_start, T_goal, s)
@@ -177,15 +179,16 @@ def _ik_along_line(robot: Any, T_start: np.ndarray, T_goal: np.ndarray, s: np.nd
     return qs
 
 
-def _check_q(q: Any, dof: int, what: str) -> np.ndarray:
+def _check_q(q: npt.ArrayLike | None, dof: int, what: str) -> np.ndarray:
     arr = np.asarray(q, dtype=float).reshape(-1)
     if arr.shape != (dof,) or not np.all(np.isfinite(arr)):
         raise RequestError(f'{what}: expected {dof} finite joint values, got {arr.tolist()}')
     return arr
 
 
-def polynomial_path(robot: Any, T_start: Any, T_goal: Any, q_start: Any = None, n_via: int = 11, *,
-                    q_goal: Any = None, end_velocity: str = 'constant', ik: IKFunction | None = None,
+def polynomial_path(robot: Chain, T_start: npt.ArrayLike, T_goal: npt.ArrayLike,
+                    q_start: npt.ArrayLike | None = None, n_via: int = 11, *,
+                    q_goal: npt.ArrayLike | None = None, end_velocity: str = 'constant', ik: IKFunction | None = None,
                     ik_tolerance: float = DEFAULT_VIA_TOLERANCE) -> PolynomialPath:
     """The paper's cubic-polynomial path along the straight line from ``T_start`` to ``T_goal``.
 
@@ -235,8 +238,9 @@ def polynomial_path(robot: Any, T_start: Any, T_goal: Any, q_start: Any = None, 
     return PolynomialPath(robot, s_via, q_via, dq_via, twist, end_velocity)
 
 
-def cartesian_ik_path(robot: Any, T_start: Any, T_goal: Any, q_start: Any = None, samples: int = 100, *,
-                      q_goal: Any = None, ik: IKFunction | None = None,
+def cartesian_ik_path(robot: Chain, T_start: npt.ArrayLike, T_goal: npt.ArrayLike,
+                      q_start: npt.ArrayLike | None = None, samples: int = 100, *,
+                      q_goal: npt.ArrayLike | None = None, ik: IKFunction | None = None,
                       ik_tolerance: float = DEFAULT_VIA_TOLERANCE) -> CartesianIKPath:
     """Cartesian straight line + slerp with IK at every sample (MoveIt Pilz LIN style).
 

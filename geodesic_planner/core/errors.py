@@ -14,6 +14,10 @@ class RequestError(GeodesicPlannerError, ValueError):
     """A request is malformed: NaN/inf, wrong shape or joint count, bad quaternion, unknown name."""
 
 
+class TrajectoryError(RequestError):
+    """A joint trajectory breaks joint_trajectory_controller's rules (the message lists them)."""
+
+
 class KinematicsError(GeodesicPlannerError):
     """A robot model cannot be built (bad DH table, URDF not a serial chain, unsupported joint)."""
 
@@ -30,7 +34,7 @@ class IKError(GeodesicPlannerError):
         iterations: iterations used.
     """
 
-    def __init__(self, message: str, *, residual: float = float('nan'), iterations: int = 0):
+    def __init__(self, message: str, *, residual: float = float('nan'), iterations: int = 0) -> None:
         super().__init__(message)
         self.residual = residual
         self.iterations = iterations
@@ -44,7 +48,7 @@ class BVPError(GeodesicPlannerError):
         max_residual: largest relative collocation residual reached.
     """
 
-    def __init__(self, message: str, *, status: int = -1, max_residual: float = float('nan')):
+    def __init__(self, message: str, *, status: int = -1, max_residual: float = float('nan')) -> None:
         super().__init__(message)
         self.status = status
         self.max_residual = max_residual
@@ -67,4 +71,5 @@ __all__ = [
     'LimitError',
     'RequestError',
     'SingularMetricError',
+    'TrajectoryError',
 ]

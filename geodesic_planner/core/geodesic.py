@@ -1,4 +1,4 @@
-"""The geodesic equations of the metric and their analytic Jacobians (NOTES.md §1).
+"""The geodesic equations of the metric and their analytic Jacobians (docs/maths.md#geodesic-equations).
 
 For the pull-back metric ``G = Jᵀ Ω J (+ ε I)`` the geodesic equations (paper eq. 3-4) read
 
@@ -45,13 +45,13 @@ class GeodesicEquations:
     def _cache(self) -> dict[bytes, tuple[np.ndarray, np.ndarray]]:
         if not hasattr(self._local, 'gen'):
             self._local.gen = {}
-        return self._local.gen  # type: ignore[no-any-return]
+        return self._local.gen
 
     @property
     def _acc_cache(self) -> dict[bytes, np.ndarray]:
         if not hasattr(self._local, 'acc'):
             self._local.acc = {}
-        return self._local.acc  # type: ignore[no-any-return]
+        return self._local.acc
 
     def _generators(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """robot.generators(q), remembering the last few batches (solve_bvp evaluates the
@@ -281,7 +281,7 @@ def solve_geodesic_bvp(
 
     def check_time() -> None:
         if deadline is not None and time.perf_counter() > deadline:
-            raise _TimeLimit
+            raise _TimeLimitError
 
     def fun(_s: np.ndarray, y: np.ndarray) -> np.ndarray:
         check_time()
@@ -291,6 +291,7 @@ def solve_geodesic_bvp(
     def fun_jac(_s: np.ndarray, y: np.ndarray) -> np.ndarray:
         check_time()
         _, da_dq, da_dv = equations.evaluate(y[:n].T, y[n:].T)
+        assert da_dq is not None and da_dv is not None   # jacobians=True returns both
         m = y.shape[1]
         df = np.zeros((2 * n, 2 * n, m))
         df[:n, n:] = eye[..., None]
@@ -318,13 +319,14 @@ def solve_geodesic_bvp(
     except SingularMetricError as err:
         raise BVPError(f'geodesic solver diverged for robot {equations.robot.name!r} (its iterates '
                        f'reached a configuration where the metric is singular): {err}', status=-1) from err
-    except _TimeLimit:
+    except _TimeLimitError:
         raise BVPError(f'geodesic solver exceeded its time limit of {time_limit:g} s for robot '
                        f'{equations.robot.name!r}', status=-2) from None
     except (ValueError, np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError) as err:
         raise BVPError(f'geodesic solver failed for robot {equations.robot.name!r}: {err}',
                        status=-1) from err
-    max_res = float(np.max(sol.rms_residuals)) if sol.rms_residuals is not None and sol.rms_residuals.size else float('nan')
+    rms = sol.rms_residuals
+    max_res = float(np.max(rms)) if rms is not None and rms.size else float('nan')
     if sol.status != 0 or not np.all(np.isfinite(sol.y)):
         cond = np.linalg.cond(equations.metric.tensor(equations.robot, np.stack([q_a, q_b]))).max()
         hint = f'; the metric is ill-conditioned at the ends (condition number {cond:.2g}): near a singularity' \
@@ -340,7 +342,7 @@ def solve_geodesic_bvp(
     return sol.x, q, sol.y[n:].T, sol.yp[n:].T, report
 
 
-class _TimeLimit(Exception):
+class _TimeLimitError(Exception):
     """Internal: the solver's wall-clock budget ran out."""
 
 

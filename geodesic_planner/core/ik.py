@@ -312,9 +312,9 @@ def solve_ik(
             if seed is not None:
                 closed.sort(key=lambda c: float(np.linalg.norm(c - q0)))
             preferred = [closed[0], q0, *closed[1:]]
-            exact = _exact_solution(robot, T_target, closed[0], position_weight, orientation_weight)
-            if exact is not None:
-                return exact
+            closed_sol = _exact_solution(robot, T_target, closed[0], position_weight, orientation_weight)
+            if closed_sol is not None:
+                return closed_sol
     if len(preferred) == 1:
         # Undamped Gauss-Newton with bounded steps from the seed (or home) first: cheaper than
         # damped least squares, and enough when the seed leads to an exact solution.
@@ -322,9 +322,9 @@ def solve_ik(
                                                 orientation_weight=orientation_weight, max_iterations=GN_ITERATIONS,
                                                 residual_tol=0.1 * EXACT_RESIDUAL, max_step=GN_MAX_STEP)
         if res_gn[0] <= EXACT_RESIDUAL:
-            exact = _exact_solution(robot, T_target, q_gn[0], position_weight, orientation_weight)
-            if exact is not None:
-                return exact
+            gn_sol = _exact_solution(robot, T_target, q_gn[0], position_weight, orientation_weight)
+            if gn_sol is not None:
+                return gn_sol
     rng = np.random.default_rng(rng_seed)
     lo = np.where(np.isfinite(robot.lower), robot.lower, -np.pi)
     hi = np.where(np.isfinite(robot.upper), robot.upper, np.pi)

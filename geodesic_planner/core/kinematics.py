@@ -94,7 +94,7 @@ class Chain:
         *,
         base_link: str = 'base_link',
         tip_link: str = 'tool0',
-        home: Sequence[float] | None = None,
+        home: Sequence[float] | np.ndarray | None = None,
     ) -> None:
         if len(joints) == 0:
             raise KinematicsError(f'robot {name!r}: a chain needs at least one actuated joint')

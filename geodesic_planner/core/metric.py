@@ -92,7 +92,8 @@ class Metric:
             label = what if isinstance(what, str) else what[i]
             hint = ''
             if self.kind == 'position' and robot.dof > 2:
-                hint = ' (the traditional dp² metric has rank <= 3 on a planar arm and < dof beyond 3 joints: paper eq. 15-16)'
+                hint = (' (the traditional dp² metric has rank <= 3 on a planar arm and < dof beyond 3 joints:'
+                        ' paper eq. 15-16)')
             elif robot.dof > 6 and self.epsilon == 0:
                 hint = ' (more than 6 joints: use epsilon > 0)'
             raise SingularMetricError(

@@ -14,7 +14,7 @@ from .errors import RequestError
 from .kinematics import Chain
 
 if TYPE_CHECKING:
-    from ..timing.parameterize import Trajectory
+    from ..timing.trajectory import Trajectory
 
 
 def check_order(order: int) -> int:
@@ -82,7 +82,11 @@ class JointPath(ABC):
 
     def timed(self, max_velocity: object = None, max_acceleration: object = None,
               duration: float | None = None) -> Trajectory:
-        """Rest-to-rest time parameterization under per-joint limits (see timing.py).
+        """Rest-to-rest time parameterization under per-joint limits (see timing.parameterize).
+
+        The one call from core up into the timing layer: a function-local import, so that core
+        never imports timing at module level (timing reads paths only through its PathLike
+        protocol).
 
         Args:
             max_velocity, max_acceleration: per-joint limits (scalars broadcast); the robot's

@@ -4,7 +4,7 @@
 2. The task-space geodesic (straight line + slerp) pulled back by batched IK at the mesh nodes
    (closed form where the robot has one, else Gauss-Newton), with q' from the task velocity.
 3. When that pull-back is exact at every node and ε = 0 (6-joint arms, the planar 3R, any arm
-   whose line + slerp stays reachable), it *is* the geodesic (NOTES.md §4): the geodesic
+   whose line + slerp stays reachable), it *is* the geodesic (docs/maths.md#oracles): the geodesic
    equations give q'' at the nodes, and the mesh is refined until the quintic Hermite path
    through (q, q', q'') is within ``path_tolerance`` of the geodesic between the nodes
    (``geodesic.interpolation_error``). No Newton step is needed: method 'pullback'.
@@ -180,7 +180,7 @@ class GeodesicPlanner:
             ik_a = self._ik(T_a, None, tolerance)
             q_a = ik_a.q
         if goal_joints is None:
-            if start_joints is None and np.abs(T_b - T_a).max() <= SAME_POSE:
+            if ik_a is not None and np.abs(T_b - T_a).max() <= SAME_POSE:
                 ik_b = ik_a            # the same pose: stay in the start configuration
             else:
                 ik_b = self._goal_ik(T_b, q_a, tolerance)
@@ -404,17 +404,18 @@ class GeodesicPlanner:
             raise RequestError(f'plan_through: needs at least 2 poses (start and goal), got {len(poses)}')
         t0 = time.perf_counter()
         # Validate every via point before solving anything, so a bad one is named as such.
-        targets = [None if (i == 0 and T is None) else check_transform(T, f'via point {i}')
-                   for i, T in enumerate(poses)]
+        first = None if poses[0] is None else check_transform(poses[0], 'via point 0')
+        targets = [check_transform(T, f'via point {i}') for i, T in enumerate(poses[1:], start=1)]
+        ik_a: IKSolution | None = None
         if start_joints is not None:
-            q_prev, ik_a = self.robot.check_joints(start_joints, 'start_joints'), None
+            q_prev = self.robot.check_joints(start_joints, 'start_joints')
         else:
-            if poses[0] is None:
+            if first is None:
                 raise RequestError('plan_through: give the first pose or start_joints')
-            ik_a = self._ik(targets[0], None, tolerance)
+            ik_a = self._ik(first, None, tolerance)
             q_prev = ik_a.q
         pieces = []
-        for i, T in enumerate(targets[1:], start=1):
+        for i, T in enumerate(targets, start=1):
             ik_b = self._goal_ik(T, q_prev, tolerance)
             q_next = snap_same(q_prev, ik_b.q)
             pieces.append(self._solve(q_prev, q_next, ik_a if i == 1 else None, ik_b, time.perf_counter()))

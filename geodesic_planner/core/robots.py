@@ -33,7 +33,7 @@ def planar_3r() -> Chain:
 
 
 def rrpp() -> Chain:
-    """Simplified XHK5140 boring/milling machine (paper Fig. 7): R, R, P, P (modified DH, NOTES.md)."""
+    """Simplified XHK5140 boring/milling machine (paper Fig. 7): R, R, P, P (modified DH, docs/maths.md#robots)."""
     a1 = a3 = d5 = 1.0
     rows = [
         (0.0, 0.0, 0.0, 0.0),

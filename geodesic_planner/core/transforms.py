@@ -8,6 +8,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from .errors import RequestError
 
@@ -105,7 +106,7 @@ def make_transform(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     return T
 
 
-def check_quaternion(q: Any, what: str = 'orientation') -> np.ndarray:
+def check_quaternion(q: npt.ArrayLike, what: str = 'orientation') -> np.ndarray:
     """Validate a quaternion (x, y, z, w): finite, norm within QUAT_NORM_TOLERANCE of 1 (then normalised).
 
     Raises:
@@ -124,7 +125,7 @@ def check_quaternion(q: Any, what: str = 'orientation') -> np.ndarray:
     return arr / norm
 
 
-def pose_to_transform(position: Any, orientation: Any, what: str = 'pose') -> np.ndarray:
+def pose_to_transform(position: npt.ArrayLike, orientation: npt.ArrayLike, what: str = 'pose') -> np.ndarray:
     """4x4 transform from a position (x, y, z) in m and a quaternion (x, y, z, w); validated.
 
     Raises:
@@ -216,9 +217,9 @@ def check_transform(T: object, what: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise RequestError(f'{what}: transform contains NaN or inf')
     R = arr[:3, :3]
-    err = float(np.abs(R.T @ R - np.eye(3)).max())
-    if err > 1e-6 or np.linalg.det(R) < 0:
-        raise RequestError(f'{what}: rotation part is not a proper rotation (|RᵀR − I| = {err:.3g})')
+    orth = float(np.abs(R.T @ R - np.eye(3)).max())
+    if orth > 1e-6 or np.linalg.det(R) < 0:
+        raise RequestError(f'{what}: rotation part is not a proper rotation (|RᵀR − I| = {orth:.3g})')
     if not np.all(np.abs(arr[3] - _LAST_ROW) <= 1e-8 + 1e-5 * _LAST_ROW):   # np.allclose, cheaper
         raise RequestError(f'{what}: last row must be [0, 0, 0, 1]')
     return arr

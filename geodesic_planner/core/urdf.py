@@ -95,22 +95,25 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
         raise KinematicsError(f'URDF: not valid XML ({err})') from err
     if root.tag != 'robot':
         raise KinematicsError(f'URDF: root element is <{root.tag}>, expected <robot>')
-    model = name or root.get('name', 'urdf_robot')
+    model = name or root.get('name') or 'urdf_robot'
     n_elements = len(root.findall('link')) + len(root.findall('joint'))
     if n_elements > MAX_ELEMENTS:
         raise KinematicsError(f'URDF: {n_elements} links and joints, more than the {MAX_ELEMENTS} accepted')
     links = [lk.get('name') for lk in root.findall('link')]
     joints_by_child: dict[str, ET.Element] = {}
+    parents: dict[str, str] = {}
     children: dict[str, list[str]] = {lk: [] for lk in links if lk}
     for j in root.findall('joint'):
         parent = j.find('parent')
         child = j.find('child')
-        if parent is None or child is None or not parent.get('link') or not child.get('link'):
+        p = None if parent is None else parent.get('link')
+        c = None if child is None else child.get('link')
+        if not p or not c:
             raise KinematicsError(f'URDF: joint {j.get("name")!r} lacks a parent or child link')
-        c, p = child.get('link'), parent.get('link')
         if c in joints_by_child:
             raise KinematicsError(f'URDF: link {c!r} has two parent joints (not a tree)')
         joints_by_child[c] = j
+        parents[c] = p
         children.setdefault(p, []).append(c)
         children.setdefault(c, [])
     _check_acyclic(joints_by_child)
@@ -137,11 +140,11 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
     path = []
     link = tip_link
     while link != base_link:
-        j = joints_by_child.get(link)
-        if j is None:
+        found = joints_by_child.get(link)
+        if found is None:
             raise KinematicsError(f'URDF: tip_link {tip_link!r} is not below base_link {base_link!r}')
-        path.append(j)
-        link = j.find('parent').get('link')  # type: ignore[union-attr]
+        path.append(found)
+        link = parents[link]
     path.reverse()
     fixed = [np.eye(4)]
     joints: list[Joint] = []

@@ -1,4 +1,4 @@
-"""Figures in the style of the paper's Fig. 5/6 (planar 3R) and Fig. 8-10 (spatial RRPP).
+"""All figures: the paper's Fig. 5/6 (planar 3R) and Fig. 8-10 (spatial RRPP), and joint trajectories.
 
 matplotlib is imported lazily (only when a figure is drawn) and used without pyplot, through
 :class:`matplotlib.figure.Figure` and the Agg canvas, so it works headless and keeps no global state.
@@ -6,7 +6,8 @@ matplotlib is imported lazily (only when a figure is drawn) and used without pyp
 from __future__ import annotations
 
 import os
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -192,4 +193,62 @@ def _joints(profiles: dict[str, Any], out_dir: str, title: str) -> str:
     return _save(fig, out_dir, 'joints.png')
 
 
-__all__ = ['is_planar', 'plot_comparison']
+class JointSeries(Protocol):
+    """A sampled joint trajectory (e.g. :class:`geodesic_planner.io.bags.TrajectoryRecord`)."""
+
+    topic: str
+    joint_names: list[str]
+    t: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray | None
+    accelerations: np.ndarray | None
+
+
+def plot_trajectories(path: str | os.PathLike[str], columns: Sequence[tuple[str, JointSeries | None]], *,
+                      title: str = '') -> str:
+    """One PNG of joint trajectories side by side: rows position, velocity, acceleration vs time.
+
+    Args:
+        path: PNG file to write.
+        columns: (heading, trajectory or None) per column, e.g. before and after processing;
+            t in s, positions (N, dof) in rad or m, velocities /s, accelerations /s² (None: not
+            in the message, shown as a note).
+        title: figure title.
+
+    Returns:
+        ``path`` as a string.
+    """
+    ncols = max(len(columns), 1)
+    fig = _figure((6.0 * ncols, 8.0))
+    axes = fig.subplots(3, ncols, sharey='row', squeeze=False)
+    labels = ('position [rad or m]', 'velocity [/s]', 'acceleration [/s²]')
+    colors = [f'C{k}' for k in range(10)]
+    legend_done = False
+    for col, (heading, rec) in enumerate(columns):
+        axes[0, col].set_title(f'{heading}: {rec.topic}' if rec is not None else f'{heading}: none', fontsize=9)
+        if rec is None:
+            continue
+        style = {'marker': 'o', 'ms': 3, 'lw': 0.8} if rec.t.size <= 200 else {'lw': 1.5}
+        for row, values in enumerate((rec.positions, rec.velocities, rec.accelerations)):
+            ax = axes[row, col]
+            if values is None:
+                ax.text(0.5, 0.5, 'not in message', ha='center', va='center', transform=ax.transAxes, color='gray')
+                continue
+            for j, name in enumerate(rec.joint_names):
+                ax.plot(rec.t, values[:, j], color=colors[j % len(colors)], label=name, **style)
+        if not legend_done:
+            axes[0, col].legend(fontsize=7, loc='best')
+            legend_done = True
+    for row, label in enumerate(labels):
+        axes[row, 0].set_ylabel(label)
+        for col in range(ncols):
+            axes[row, col].grid(True, alpha=0.3)
+    for col in range(ncols):
+        axes[-1, col].set_xlabel('time from start [s]')
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(os.fspath(path), dpi=90)
+    return os.fspath(path)
+
+
+__all__ = ['JointSeries', 'is_planar', 'plot_comparison', 'plot_trajectories']

@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
@@ -24,6 +24,10 @@ from ..core.kinematics import Chain
 from ..core.planner import GeodesicPlanner
 from ..core.robots import load_robot
 from ..core.transforms import pose_from_mapping
+
+if TYPE_CHECKING:
+    from ..core.geodesic import GeodesicPath
+    from ..core.piecewise import PiecewiseGeodesicPath
 
 KNOWN_KEYS = {'robot', 'metric', 'position_weight', 'orientation_weight', 'epsilon', 'start', 'goal',
               'start_joints', 'goal_joints', 'via', 'tolerance', 'base_link', 'tip_link', 'description'}
@@ -46,7 +50,7 @@ class PlanRequest:
         """A planner for this request's robot and metric options."""
         return GeodesicPlanner(self.robot, **self.planner_options)
 
-    def plan(self, planner: GeodesicPlanner | None = None):  # noqa: ANN201 (GeodesicPath | Piecewise)
+    def plan(self, planner: GeodesicPlanner | None = None) -> GeodesicPath | PiecewiseGeodesicPath:
         """Plan it: a geodesic, or a piecewise geodesic when via points are given."""
         planner = planner or self.planner()
         if self.via:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
-from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion
+from geometry_msgs.msg import Point, Pose, PoseStamped
 from nav_msgs.msg import Path
 from sensor_msgs.msg import JointState
 from std_msgs.msg import ColorRGBA, Header
@@ -21,6 +21,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from ..core.errors import RequestError
 from ..core.transforms import make_transform, matrix_to_quat, pose_to_transform, quat_to_matrix
+from ..timing.validate import trajectory_problems
 
 
 @dataclass(frozen=True)
@@ -108,50 +109,19 @@ def joint_trajectory_to_arrays(msg: JointTrajectory) -> TrajectoryArrays:
     return TrajectoryArrays(list(msg.joint_names), t, pos, _field('velocities'), _field('accelerations'))
 
 
-def _concat(rows: list) -> tuple[np.ndarray, np.ndarray]:
-    """Concatenated float values of message sequences and the point index of each value."""
-    lengths = np.fromiter((len(r) for r in rows), dtype=np.int64, count=len(rows))
-    if lengths.sum() == 0:
-        return np.zeros(0), np.zeros(0, dtype=np.int64)
-    values = np.concatenate([np.asarray(r, dtype=float) for r in rows])
-    return values, np.repeat(np.arange(len(rows)), lengths)
-
-
-def validate_joint_trajectory(msg: JointTrajectory) -> list[str]:
+def validate_joint_trajectory(msg: JointTrajectory, *, require_rest_at_end: bool = True) -> list[str]:
     """Problems joint_trajectory_controller would reject the message for (empty list: valid).
 
-    Checks: non-empty joint names (unique), non-empty points, every point's positions (and
-    velocities/accelerations when present) sized like joint_names, finite values,
-    time_from_start >= 0 and strictly increasing (compared in integer nanoseconds).
-    Vectorised over points (no per-value Python work).
+    The message's fields handed to the one trajectory validator,
+    :func:`geodesic_planner.timing.validate.trajectory_problems` (the bag tools use it too).
     """
-    problems: list[str] = []
-    n = len(msg.joint_names)
-    if n == 0:
-        problems.append('empty joint_names')
-    if len(set(msg.joint_names)) != n:
-        problems.append('duplicate joint names')
     points = msg.points
-    if not points:
-        problems.append('no points')
-        return problems
-    for name, allow_empty in (('positions', False), ('velocities', True), ('accelerations', True)):
-        rows = [getattr(p, name) for p in points]
-        lengths = np.fromiter((len(r) for r in rows), dtype=np.int64, count=len(rows))
-        bad = (lengths != n) & ~((lengths == 0) & allow_empty)
-        for i in np.flatnonzero(bad):
-            problems.append(f'point {i}: {lengths[i]} {name} for {n} joints')
-        values, owner = _concat(rows)
-        for i in np.unique(owner[~np.isfinite(values)]):
-            problems.append(f'point {i}: non-finite {name}')
-    ns = np.fromiter((p.time_from_start.sec * 1_000_000_000 + p.time_from_start.nanosec
-                      for p in points), dtype=np.int64, count=len(points))
-    if ns[0] < 0:
-        problems.append(f'point 0: negative time_from_start {ns[0] * 1e-9:.9f} s')
-    for i in np.flatnonzero(np.diff(ns) <= 0) + 1:
-        problems.append(f'point {i}: time_from_start {ns[i] * 1e-9:.9f} s not after '
-                        f'{ns[i - 1] * 1e-9:.9f} s')
-    return problems
+    ns = np.fromiter((p.time_from_start.sec * 1_000_000_000 + p.time_from_start.nanosec for p in points),
+                     dtype=np.int64, count=len(points))
+    return trajectory_problems(
+        list(msg.joint_names), ns * 1e-9,
+        [p.positions for p in points], [p.velocities for p in points], [p.accelerations for p in points],
+        require_rest_at_end=require_rest_at_end)
 
 
 # --------------------------------------------------------------------------- poses

@@ -5,14 +5,14 @@ graph (``count_subscribers``) can show a subscription before the writer has matc
 that publishes a one-off message (a planned trajectory) therefore waits, briefly and boundedly,
 until every subscription the graph shows on the topic has matched its publisher.
 
-The graph of the publishing node may not show a new subscription at all yet, so a client that
-must receive the next message waits for the writer's own word: :func:`matched_logger` logs
-``<topic>: N subscription(s) matched`` whenever the publisher's match count changes.
+For people reading the log, :func:`matched_logger` logs ``<topic>: N subscription(s) matched``
+whenever the publisher's match count changes; programs read the same count on ``/diagnostics``
+(:mod:`geodesic_planner.ros.diagnostics`), never in the log.
 """
 from __future__ import annotations
 
-import re
 import time
+from collections.abc import Callable
 
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
@@ -35,19 +35,17 @@ def wait_for_matched_subscriptions(node: Node, publisher: Publisher, timeout: fl
         time.sleep(0.002)
 
 
-def matched_logger(node: Node, topic: str) -> PublisherEventCallbacks:
+def matched_logger(node: Node, topic: str,
+                   on_count: Callable[[int], None] | None = None) -> PublisherEventCallbacks:
     """Publisher event callbacks that log ``<topic>: N subscription(s) matched`` on every change.
 
-    ``topic`` is the name to log (the publisher's resolved name is not known before creation).
+    ``topic`` is the name to log (the publisher's resolved name is not known before creation);
+    ``on_count`` is also given the new count (e.g. to put it in the node's diagnostics).
     """
     def on_matched(status: object) -> None:
         if getattr(status, 'current_count_change', 0):
-            node.get_logger().info(f'{topic}: {getattr(status, "current_count", 0)} subscription(s) matched')
+            count = int(getattr(status, 'current_count', 0))
+            node.get_logger().info(f'{topic}: {count} subscription(s) matched')
+            if on_count is not None:
+                on_count(count)
     return PublisherEventCallbacks(matched=on_matched)
-
-
-def logged_matches(log_text: str, topic: str) -> int:
-    """Most subscriptions a node's log says its publisher on ``topic`` had matched (the lines of
-    :func:`matched_logger`; 0 if none): what a client waits for before triggering a publish."""
-    counts = re.findall(rf'{re.escape(topic)}: (\d+) subscription\(s\) matched', log_text)
-    return max((int(c) for c in counts), default=0)

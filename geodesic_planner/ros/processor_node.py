@@ -24,12 +24,14 @@ Interface (``~`` = ``/trajectory_processor`` by default):
   no points, wrong sizes, non-finite values, non-increasing ``time_from_start``) is logged as an
   error naming the cause, recorded as received, and not published. The node keeps going.
 
-Parameters: ``input_topic``, ``output_topic``, ``bag_path``, ``storage``, ``record_topics``
-are read-only (fixed at start); ``sample_period`` (s, > 0) and ``velocity_scaling`` ((0, 1])
-may be changed at run time, invalid values are rejected with a reason.
+Parameters (:data:`geodesic_planner.ros.params.PROCESSOR_PARAMETERS`, from the schema shared with
+the planner node): ``input_topic``, ``output_topic``, ``bag_path``, ``storage``,
+``record_topics`` are read-only (fixed at start); ``sample_period`` (s, > 0) and
+``velocity_scaling`` ((0, 1]) may be changed at run time, invalid values are rejected with a
+reason (``<name>: <problem>``).
 
 Recording (``bag_path`` non-empty): a new rosbag2 directory per run, never an existing one
-(:func:`geodesic_planner.io.bag.new_bag_path`: an existing non-empty ``bag_path`` gets a timestamped
+(:func:`geodesic_planner.io.bags.new_bag_path`: an existing non-empty ``bag_path`` gets a timestamped
 bag inside or next to it; the log says where). ``record_topics`` (default: input, output,
 ``/joint_states``) may name other topics as ``name`` (type taken from the ROS graph once a
 publisher appears) or ``name=pkg/msg/Type`` (``name:pkg/msg/Type`` works too, but needs quotes
@@ -37,7 +39,7 @@ inside a YAML list on the command line). Input and other topics are recorded as 
 received; the node's own output as the exact CDR of the published message (rosbags
 serialisation; ``serialize_message`` would pad empty arrays). Timestamps are receive/publish
 times of the node's clock. Data reach the file at least every 0.5 s (see
-:mod:`geodesic_planner.io.bag`): after SIGKILL ``geodesic-bag repair`` recovers all but the last
+:mod:`geodesic_planner.io.bags.recorder`): after SIGKILL ``geodesic-bag repair`` recovers all but the last
 0.5 s. On SIGINT/SIGTERM the node takes every message already delivered to it (processing
 the backlog for up to 2 s, then recording the rest raw without processing, see :func:`_drain`),
 closes the bag (metadata written) and exits with 0. The closing log line gives the counts:
@@ -53,18 +55,13 @@ node keeps going.
 """
 from __future__ import annotations
 
-import faulthandler
 import importlib
-import math
-import signal
-import sys
 import threading
 import time
 from typing import Any
 
 import rclpy
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy._rclpy_pybind11 import RCLError
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -72,73 +69,28 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from rclpy.signals import SignalHandlerOptions
 from trajectory_msgs.msg import JointTrajectory
 
-from ..io.bag import JOINT_STATE, JOINT_TRAJECTORY, STORAGES, BagRecorder, make_typestore, new_bag_path, to_cdr
+from ..io.bags import JOINT_STATE, JOINT_TRAJECTORY, STORAGES, BagRecorder, make_typestore, new_bag_path, to_cdr
 from ..core.errors import BagError, GeodesicPlannerError, RequestError
 from ..timing.resample import process_trajectory
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory
+from . import params, runtime
+from .diagnostics import NodeStatus
 from .matching import matched_logger, wait_for_matched_subscriptions
+from .params import PROCESSOR_PARAMETERS
 
 NODE_NAME = 'trajectory_processor'
-DEFAULT_INPUT_TOPIC = '/geodesic_planner/joint_trajectory'
-DEFAULT_OUTPUT_TOPIC = '~/joint_trajectory'
 JOINT_STATES_TOPIC = '/joint_states'
 KNOWN_TYPES = {JOINT_STATES_TOPIC: JOINT_STATE}
 DRAIN_TIMEOUT = 2.0  # s spent at shutdown processing messages already received
 RECORD_DRAIN_TIMEOUT = 5.0  # s more at shutdown recording (without processing) the remaining ones
-
-_STRING, _DOUBLE, _STRING_ARRAY = 'string', 'double', 'string array'
-#: name -> (default, kind, read_only, description)
-PARAMETERS: dict[str, tuple[Any, str, bool, str]] = {
-    'input_topic': (DEFAULT_INPUT_TOPIC, _STRING, True,
-                    'JointTrajectory topic to process (reliable, depth 10)'),
-    'output_topic': (DEFAULT_OUTPUT_TOPIC, _STRING, True,
-                     'where the processed JointTrajectory is published (remap to a controller)'),
-    'sample_period': (0.01, _DOUBLE, False, 'output point spacing in s (> 0)'),
-    'velocity_scaling': (1.0, _DOUBLE, False,
-                         'speed factor f in (0, 1]: durations / f, velocities * f, accelerations * f^2'),
-    'bag_path': ('', _STRING, True,
-                 'new bag directory for this run (existing non-empty: a timestamped one inside or '
-                 'next to it); empty disables recording'),
-    'storage': ('mcap', _STRING, True, 'bag storage: mcap or sqlite3'),
-    'record_topics': (None, _STRING_ARRAY, True,
-                      'topics to record ("name", or "name=pkg/msg/Type" / "name:pkg/msg/Type" to give '
-                      'the type); default: input, output, /joint_states'),
-}
-
 
 def _qos(reliability: ReliabilityPolicy = ReliabilityPolicy.RELIABLE, *, keep_all: bool = False) -> QoSProfile:
     """Volatile QoS, depth 10; ``keep_all`` for subscriptions whose every message must be recorded."""
     history = HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST
     return QoSProfile(depth=10, history=history, reliability=reliability,
                       durability=DurabilityPolicy.VOLATILE)
-
-
-def check_parameter(name: str, value: Any) -> str | None:  # noqa: ANN401
-    """Reason why ``value`` is not acceptable for parameter ``name`` (None: acceptable)."""
-    if name in ('sample_period', 'velocity_scaling'):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            return f'{name} must be a number, got {value!r}'
-        x = float(value)
-        if name == 'sample_period' and not (math.isfinite(x) and x > 0.0):
-            return f'sample_period must be finite and > 0 s, got {value!r}'
-        if name == 'velocity_scaling' and not (math.isfinite(x) and 0.0 < x <= 1.0):
-            return f'velocity_scaling must be in (0, 1], got {value!r}'
-    elif name == 'storage':
-        if value not in STORAGES:
-            return f'storage must be one of {", ".join(STORAGES)}, got {value!r}'
-    elif name in ('input_topic', 'output_topic'):
-        if not isinstance(value, str) or not value:
-            return f'{name} must be a non-empty topic name, got {value!r}'
-    elif name == 'bag_path':
-        if not isinstance(value, str):
-            return f'bag_path must be a string, got {value!r}'
-    elif name == 'record_topics':
-        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) and v.strip(':') for v in value):
-            return f'record_topics must be a list of topic names, got {value!r}'
-    return None
 
 
 class TrajectoryProcessorNode(Node):
@@ -153,14 +105,8 @@ class TrajectoryProcessorNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         # Registered before declaring: initial overrides (-p ...) are validated too.
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        for name, (default, kind, read_only, description) in PARAMETERS.items():
-            descriptor = ParameterDescriptor(description=description, read_only=read_only,
-                                             additional_constraints=kind)
-            if name == 'record_topics':
-                continue
-            if kind == _DOUBLE:
-                descriptor.dynamic_typing = True  # accept -p velocity_scaling:=1 (an integer)
-            self.declare_parameter(name, default, descriptor)
+        # record_topics is declared below: its default needs the resolved topic names.
+        params.declare(self, [n for n in PROCESSOR_PARAMETERS if n != 'record_topics'])
         self._typestore = make_typestore()
         self._lock = threading.Lock()
         self.received = 0
@@ -171,6 +117,9 @@ class TrajectoryProcessorNode(Node):
         #: set at shutdown once DRAIN_TIMEOUT is spent: inputs are recorded, not processed
         self.record_only = False
 
+        self.status = NodeStatus(self)
+        self.status.set(input_publishers_matched=0, output_subscriptions_matched=0,
+                        received=0, published=0, rejected=0)
         try:
             events = SubscriptionEventCallbacks(matched=self._on_input_matched,
                                                 message_lost=self._on_input_lost)
@@ -180,7 +129,9 @@ class TrajectoryProcessorNode(Node):
             output_topic = self.get_parameter('output_topic').value
             self.output_pub = self.create_publisher(
                 JointTrajectory, output_topic, _qos(),
-                event_callbacks=matched_logger(self, f'output {self.resolve_topic_name(output_topic)}'))
+                event_callbacks=matched_logger(
+                    self, f'output {self.resolve_topic_name(output_topic)}',
+                    on_count=lambda n: self.status.set(output_subscriptions_matched=n)))
         except (ValueError, TypeError, RuntimeError, NameValidationException) as err:
             msg = f'invalid topic name: {err}'
             raise RequestError(msg) from err
@@ -188,9 +139,7 @@ class TrajectoryProcessorNode(Node):
         self.output_topic = self.output_pub.topic_name
 
         default_record = [self.input_topic, self.output_topic, JOINT_STATES_TOPIC]
-        descriptor = ParameterDescriptor(description=PARAMETERS['record_topics'][3], read_only=True,
-                                         additional_constraints=_STRING_ARRAY, dynamic_typing=True)
-        self.declare_parameter('record_topics', default_record, descriptor)
+        params.declare(self, ['record_topics'], {'record_topics': default_record})
 
         self.recorder: BagRecorder | None = None
         self._extra_subs: dict[str, Any] = {}
@@ -206,12 +155,11 @@ class TrajectoryProcessorNode(Node):
             f'{float(self.get_parameter("velocity_scaling").value):g}')
 
     # ------------------------------------------------------------------ parameters
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        for p in params:
-            reason = check_parameter(p.name, p.value)
-            if reason is not None:
-                self.get_logger().warning(f'rejected parameter {p.name}: {reason}')
-                return SetParametersResult(successful=False, reason=reason)
+    def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        reason = params.rejection(changes, PROCESSOR_PARAMETERS)
+        if reason is not None:
+            self.get_logger().warning(f'parameter update rejected: {reason}')
+            return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
     # ------------------------------------------------------------------ recording
@@ -331,8 +279,6 @@ class TrajectoryProcessorNode(Node):
 
     # ------------------------------------------------------------------ processing
     def _log_matched(self, topic: str, status: Any) -> None:  # noqa: ANN401
-        # A volatile reader gets only what is published after *it* matched the writer: tests and
-        # users can wait for this line before publishing.
         if status.current_count_change:
             self.get_logger().info(f'{topic}: {status.current_count} publisher(s) matched')
 
@@ -342,7 +288,10 @@ class TrajectoryProcessorNode(Node):
             f'({status.total_count} in total)')
 
     def _on_input_matched(self, status: Any) -> None:  # noqa: ANN401
+        # A volatile reader gets only what is published after *it* matched the writer, and only
+        # this node knows when that is: the count goes to /diagnostics for scripts to wait on.
         self._log_matched(f'input {self.input_topic}', status)
+        self.status.set(input_publishers_matched=status.current_count)
 
     def _on_input_lost(self, status: Any) -> None:  # noqa: ANN401
         self._log_lost(f'input {self.input_topic}', status)
@@ -358,6 +307,7 @@ class TrajectoryProcessorNode(Node):
         except Exception as err:  # noqa: BLE001 - boundary: one bad input never ends the node
             self.rejected += 1
             self.get_logger().error(f'rejected trajectory: internal error: {type(err).__name__}: {err}')
+        self.status.set(received=self.received, published=self.published, rejected=self.rejected)
 
     def _process(self, raw: bytes) -> None:
         """Decode, validate, resample, publish and record one input (already recorded raw)."""
@@ -416,24 +366,10 @@ def main(args: list[str] | None = None) -> int:
         0 on a clean exit (signal, also one that arrives while starting), 1 when the parameters
         are invalid or the bag cannot be created (one ``cannot start`` line, no traceback).
     """
-    stop = threading.Event()
-
-    def _on_signal(signum: int, frame: object) -> None:
-        stop.set()
-
-    previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-    faulthandler.enable()                                     # stacks on a fatal signal
-    faulthandler.register(signal.SIGUSR1, all_threads=True)   # `kill -USR1 pid`: dump stacks
-    try:
-        try:
-            rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-        except RCLError as err:  # e.g. a -p value rcl cannot parse
-            print(f'[ERROR] [{NODE_NAME}]: cannot start: {err}', file=sys.stderr)
+    with runtime.stop_on_signals() as stop:
+        if not runtime.init(NODE_NAME, args):
             return 1
         return _run(stop)
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
 
 def _drain(node: TrajectoryProcessorNode, executor: SingleThreadedExecutor) -> None:

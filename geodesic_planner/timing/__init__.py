@@ -1,6 +1,24 @@
-"""Time laws: rest-to-rest timing of a joint path under per-joint limits, and the Trajectory type."""
+"""Time laws: timing of a joint path under per-joint limits, the Trajectory type and its validator.
+
+Layers inside: sampling -> topp -> smoothing (the rest-to-rest law) behind the law protocol;
+``trajectory`` is what every law returns; ``validate`` holds joint_trajectory_controller's rules.
+"""
 from __future__ import annotations
 
-from .parameterize import Trajectory, time_parameterize
+from .law import JointLimits, PathLike, TimeLaw, TimeScaling
+from .parameterize import time_parameterize
+from .smoothing import SmoothRestToRest
+from .trajectory import Trajectory
+from .validate import check_trajectory, trajectory_problems
 
-__all__ = ['Trajectory', 'time_parameterize']
+__all__ = [
+    'JointLimits',
+    'PathLike',
+    'SmoothRestToRest',
+    'TimeLaw',
+    'TimeScaling',
+    'Trajectory',
+    'check_trajectory',
+    'time_parameterize',
+    'trajectory_problems',
+]

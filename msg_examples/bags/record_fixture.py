@@ -34,7 +34,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from geodesic_planner.cli.bag import format_info
-from geodesic_planner.io.bag import bag_info
+from geodesic_planner.io.bags import bag_info
 
 HERE = Path(__file__).resolve().parent
 TARGET = HERE / 'paper_3r_scaling_0.5'

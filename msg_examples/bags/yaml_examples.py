@@ -1,6 +1,6 @@
 """Regenerate msg_examples/joint_trajectory*.yaml from the fixture bag (run from the repository root)."""
 import yaml
-from geodesic_planner.io.bag import read_trajectories
+from geodesic_planner.io.bags import read_trajectories
 from geodesic_planner.timing.resample import resample
 
 BAG = 'msg_examples/bags/paper_3r_scaling_0.5'

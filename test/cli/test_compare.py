@@ -77,7 +77,7 @@ def test_3r_json_keys(paper_3r_output):
 
 
 def test_3r_geodesic_end_effector_jerk_is_zero_polynomial_is_not(paper_3r_output):
-    """Exact oracle: the 3R geodesic is the straight line with phi linear in s (NOTES.md section 4)."""
+    """Exact oracle: the 3R geodesic is the straight line with phi linear in s (docs/maths.md#oracles)."""
     _, data = paper_3r_output
     g, p = data['geodesic'], data['polynomial']
     assert g['max_abs_jerk']['ee_position'] < 1e-6

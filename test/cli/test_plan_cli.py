@@ -98,7 +98,7 @@ def paper_3r_json(tmp_path_factory):
 
 def test_paper_3r_json_layout(paper_3r_json):
     d = paper_3r_json
-    assert KEYS <= set(d)
+    assert set(d) >= KEYS
     assert d['joint_names'] == ['joint1', 'joint2', 'joint3']
     assert_allclose(d['s'], np.linspace(0, 1, 201), atol=1e-15)
     for key in ('positions', 'velocities', 'accelerations', 'jerks', 'ee_positions'):

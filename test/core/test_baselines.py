@@ -11,8 +11,13 @@ import numpy as np
 import pytest
 
 from geodesic_planner import chain_from_dh, load_robot
-from geodesic_planner.core.baselines import (CartesianIKPath, PolynomialPath, cartesian_ik_path, line_twist,
-                                        polynomial_path)
+from geodesic_planner.core.baselines import (
+    CartesianIKPath,
+    PolynomialPath,
+    cartesian_ik_path,
+    line_twist,
+    polynomial_path,
+)
 from geodesic_planner.core.errors import RequestError
 from geodesic_planner.core.transforms import line_slerp, pose_error
 

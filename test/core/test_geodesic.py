@@ -1,4 +1,4 @@
-"""Geodesics against exact oracles (NOTES.md §4).
+"""Geodesics against exact oracles (docs/maths.md#oracles).
 
 * The geodesic equations: ∂a/∂q, ∂a/∂q' against finite differences; a = q'' against the
   Christoffel-symbol form of eq. (4) built here from finite differences of G; task-space
@@ -13,18 +13,20 @@
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
-
 import urdf_util as U
+from numpy.testing import assert_allclose
+from planning_checks import Q3_A, Q3_B, expect_error
+
 from geodesic_planner import GeodesicPlanner, load_robot
 from geodesic_planner.core.errors import BVPError, RequestError
 from geodesic_planner.core.geodesic import GeodesicEquations, solve_geodesic_bvp
 from geodesic_planner.core.metric import Metric
-from geodesic_planner.io.requests import load_request
 from geodesic_planner.core.urdf import chain_from_urdf
+from geodesic_planner.io.requests import load_request
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DATA = os.path.join(ROOT, 'geodesic_planner', 'data')
@@ -33,7 +35,7 @@ IIWA = os.path.join(DATA, 'iiwa_like_7r.urdf')
 PAPER_3R = os.path.join(ROOT, 'msg_examples', 'paper_3r.yaml')
 RRPP_A = np.array([0.123, -1.539, 0.276, -0.640])
 RRPP_B = np.array([0.129, -1.629, 0.239, -0.643])
-#: Acceptance of issue 2: joint path to 1e-5 rad, tool path to 1e-6 m (and rad).
+#: Required accuracy against the exact oracle: joint path to 1e-5 rad, tool path to 1e-6 m (and rad).
 JOINT_TOL, TOOL_TOL = 1e-5, 1e-6
 
 
@@ -197,7 +199,7 @@ def test_3r_geodesic_is_the_straight_line_with_linear_phi(paper_3r):
     # joint path against the closed-form IK along the line
     q_oracle = my_3r_ik(p_line[:, 0], p_line[:, 1], phi_line)
     assert np.abs(q - q_oracle).max() <= JOINT_TOL
-    # tool path: FK written here (NOTES §3)
+    # tool path: FK written here (docs/maths.md#robots)
     t1, t12, t123 = q[:, 0], q[:, 0] + q[:, 1], q.sum(axis=1)
     x = np.cos(t1) + np.cos(t12) + np.cos(t123)
     y = np.sin(t1) + np.sin(t12) + np.sin(t123)
@@ -242,10 +244,7 @@ def test_3r_tool_acceleration_and_jerk_vanish(paper_3r):
 @pytest.mark.parametrize('which', ['3r', 'rrpp'])
 def test_evaluate_derivatives_are_derivatives(which, paper_3r):
     """evaluate's q', q'', q''' against central differences of its own lower orders."""
-    if which == '3r':
-        path = paper_3r[1]
-    else:
-        path = GeodesicPlanner(load_robot('rrpp')).plan(None, None, RRPP_A, RRPP_B)
+    path = paper_3r[1] if which == '3r' else GeodesicPlanner(load_robot('rrpp')).plan(None, None, RRPP_A, RRPP_B)
     h = 1e-5
     s = np.linspace(2 * h, 1 - 2 * h, 201)
     plus, minus, mid = path.evaluate(s + h), path.evaluate(s - h), path.evaluate(s)
@@ -293,7 +292,7 @@ def _check_line_slerp(robot, fkb, path, q_a, T_a, T_b):
 def test_six_joint_geodesic_is_line_and_slerp_from_poses(arm_moves):
     robot, fkb, moves = arm_moves
     planner = GeodesicPlanner(robot)
-    for q_a, T_a, T_b in moves:
+    for _q_a, T_a, T_b in moves:
         path = planner.plan(T_a, T_b)
         assert path.solver.status == 0
         # the planner chose its own start branch; the oracle continues from there
@@ -398,7 +397,7 @@ def test_rrpp_energy_is_stationary(rrpp_path):
 
 
 def test_rrpp_tool_path_bows_off_the_chord(rrpp_path):
-    """NOTES §3: not the straight line: the tool path leaves the chord by a fraction of a mm."""
+    """docs/maths.md#robots: not the straight line: the tool path leaves the chord by a fraction of a mm."""
     _, path = rrpp_path
     p = path.ee_poses(np.linspace(0, 1, 1001))[:, :3, 3]
     chord = (p[-1] - p[0]) / np.linalg.norm(p[-1] - p[0])
@@ -486,3 +485,21 @@ def test_six_joint_special_moves(d, axis, angle):
     assert np.abs(q - q_oracle).max() <= JOINT_TOL
     dp, dr = U.tool_deviation(U.ur5e_fk_batch, q, T_a, T_b, s)
     assert dp <= TOOL_TOL and dr <= TOOL_TOL
+
+
+# Deterministic regressions found by the fuzzer (test_fuzz.py): exception type and cause.
+@pytest.mark.parametrize(('s', 'cause'), [
+    ([0.5, np.nan], r'^s: contains NaN or inf$'), ([1.5], r'^s: values must lie in \[0, 1\], got \[1\.5, 1\.5\]$'),
+    ([[0.5]], r'^s: expected a 1-D array, got shape \(1, 1\)$'), ([-0.1, 0.2], r'must lie in \[0, 1\]')])
+def test_regression_bad_s(planar: GeodesicPlanner, s: Any, cause: str) -> None:
+    path = planar.plan(None, None, Q3_A, Q3_B)
+    expect_error('regression', lambda: path.evaluate(s), RequestError, cause)
+    expect_error('regression', lambda: path.ee_poses(s), RequestError, cause)
+
+
+@pytest.mark.parametrize('s', ['x', [[0.5, 0.6], [0.7]]])
+def test_regression_ragged_s(planar: GeodesicPlanner, s: Any) -> None:
+    """Found by the fuzzer (was a bare ValueError)."""
+    path = planar.plan(None, None, Q3_A, Q3_B)
+    for fn in (path.evaluate, path.ee_poses):
+        expect_error('regression', lambda: fn(s), RequestError, r'^s: expected a 1-D array of numbers in \[0, 1\] \(')

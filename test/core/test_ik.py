@@ -3,18 +3,20 @@
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from planning_checks import PANDA_AT_LIMITS, expect_error
 
-from geodesic_planner import load_robot
+from geodesic_planner import GeodesicPlanner, load_robot
 from geodesic_planner.core.errors import IKError, RequestError
 from geodesic_planner.core.ik import check_transform, planar_3r_ik, solve_ik
 from geodesic_planner.core.kinematics import chain_from_dh
 from geodesic_planner.core.transforms import pose_error
 
-DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), 'geodesic_planner', 'data')
+DATA = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..', 'geodesic_planner', 'data'))
 KR6 = os.path.join(DATA, 'kr6_like.urdf')
 IIWA = os.path.join(DATA, 'iiwa_like_7r.urdf')
 # ordinary (non-singular) configurations to move around
@@ -46,7 +48,7 @@ def test_paper_table2_reproduced():
     robot = load_robot('planar_3r')
     qa = solve_ik(robot, TABLE1_A)
     qb = solve_ik(robot, TABLE1_B, qa.q)
-    # Table 2 to its 3 printed decimals (signs restored, NOTES §3); default branch θ2 > 0
+    # Table 2 to its 3 printed decimals (signs restored, docs/maths.md#robots); default branch θ2 > 0
     assert_allclose(qa.q, [0.258, 0.583, -0.317], atol=6e-4)
     assert_allclose(qb.q, [0.969, 0.380, -0.574], atol=6e-4)
     for sol, T in ((qa, TABLE1_A), (qb, TABLE1_B)):
@@ -250,3 +252,33 @@ def test_gauss_newton_batch_converges_on_reachable_targets():
     assert_allclose(T, robot.fk(q), atol=1e-15)          # returned kinematics are at the returned q
     assert_allclose(X, robot.generators(q)[0], atol=1e-15)
     assert_allclose(q, q_true, atol=1e-9)                 # near seeds: the same solution
+
+
+# Deterministic regressions found by the fuzzer (test_fuzz.py): exception type and cause.
+@pytest.mark.parametrize('tol', [-1.0, 0.0, np.nan, 1.5])
+def test_regression_nonpositive_tol(tol: float) -> None:
+    """Found by the fuzzer (tol <= 0 or NaN was accepted, then plan() raised a bare ValueError)."""
+    robot = load_robot('ur5e')
+    expect_error('regression', lambda: GeodesicPlanner(robot, tol=tol), RequestError,
+                 r'^tol \(collocation tolerance\) must be a number in \(0, 1\), got')
+
+
+@pytest.mark.parametrize(('target', 'cause'), [
+    (np.eye(3), r'^IK target: expected a 4x4 homogeneous transform, got shape \(3, 3\)$'),
+    (None, r'^IK target: expected a 4x4 homogeneous transform, got shape \(\)$'),
+    (np.full((4, 4), np.nan), r'^IK target: transform contains NaN or inf$')])
+def test_regression_solve_ik_bad_target(target: Any, cause: str) -> None:
+    """Found by the fuzzer (a bare ValueError, an IndexError, an IKError 'nan away')."""
+    from geodesic_planner.core.ik import solve_ik
+    robot = load_robot('ur5e')
+    expect_error('regression', lambda: solve_ik(robot, target, None), RequestError, cause)
+
+
+def test_regression_ik_inexact_at_limits() -> None:
+    """IK reaches an exactly reachable panda pose (fk of joints on their limits) to the exact residual:
+    bounded damped least-squares steps (DLS_MAX_STEP) keep the first step from pinning the iterate
+    against the limits, where it would stall at an embedding residual of about 5e-4."""
+    from geodesic_planner.core.ik import solve_ik
+    robot = load_robot('panda')
+    sol = solve_ik(robot, robot.fk(np.array(PANDA_AT_LIMITS)))
+    assert sol.residual <= 1e-9, f'IK residual {sol.residual:.3g} for an exactly reachable pose'

@@ -4,18 +4,20 @@ derivative H(q, v) against central finite differences (here only: the library is
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
-
 import urdf_util as U
+from numpy.testing import assert_allclose
+from planning_checks import expect_error
+
 from geodesic_planner import load_robot
 from geodesic_planner.core.errors import KinematicsError, RequestError
 from geodesic_planner.core.kinematics import Chain, Joint, chain_from_dh
 from geodesic_planner.core.urdf import chain_from_urdf
 
-DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), 'geodesic_planner', 'data')
+DATA = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..', 'geodesic_planner', 'data'))
 PI = np.pi
 
 # Published UR5e standard DH (Universal Robots), written out here independently of robots.py.
@@ -25,7 +27,7 @@ UR5E_DH = [(0.0, 0.1625, 0.0, PI / 2), (0.0, 0.0, -0.425, 0.0), (0.0, 0.0, -0.39
 PANDA_MDH = [(0.0, 0.0, 0.333, 0.0), (-PI / 2, 0.0, 0.0, 0.0), (PI / 2, 0.0, 0.316, 0.0),
              (PI / 2, 0.0825, 0.0, 0.0), (-PI / 2, -0.0825, 0.384, 0.0), (PI / 2, 0.0, 0.0, 0.0),
              (PI / 2, 0.088, 0.0, 0.0)]
-# RRPP (NOTES.md §3), modified DH rows; tool row (π, 0, d5, −π/2).
+# RRPP (docs/maths.md#robots), modified DH rows; tool row (π, 0, d5, −π/2).
 A1 = A3 = D5 = 1.0
 RRPP_MDH = [(0.0, 0.0, 0.0, 0.0), (np.arccos(1 / np.sqrt(3)), A1, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0),
             (-PI / 2, A3, 0.0, PI)]
@@ -65,7 +67,7 @@ def random_q(robot: Chain, rng: np.random.Generator, n: int) -> np.ndarray:
 
 # ---------------------------------------------------------------------- forward kinematics
 def test_planar_3r_fk_closed_form():
-    """NOTES §3: p = (c1 + c12 + c123, s1 + s12 + s123, 0), n = (c123, s123, 0), a = z."""
+    """docs/maths.md#robots: p = (c1 + c12 + c123, s1 + s12 + s123, 0), n = (c123, s123, 0), a = z."""
     robot = load_robot('planar_3r')
     qs = random_q(robot, np.random.default_rng(1), 40)
     T = robot.fk(qs)
@@ -89,7 +91,7 @@ def test_planar_3r_fk_closed_form():
      (-0.016, 0.579, 0.815), (-0.994, -0.095, 0.047)),
 ])
 def test_rrpp_table6_joints_give_table5_poses(q, p, n, o, a):
-    """Paper Tables 5/6 (signs restored in NOTES §3): FK reproduces the printed 3 decimals."""
+    """Paper Tables 5/6 (signs restored in docs/maths.md#robots): FK reproduces the printed 3 decimals."""
     robot = load_robot('rrpp')
     assert robot.joint_types == ('revolute', 'revolute', 'prismatic', 'prismatic')
     T = robot.fk(np.array(q))
@@ -277,3 +279,17 @@ def test_load_robot_unknown_name_lists_presets():
         load_robot('kr16')
     with pytest.raises(RequestError, match='cannot read URDF'):
         load_robot('/nonexistent/dir/robot.urdf')
+
+
+# Deterministic regressions found by the fuzzer (test_fuzz.py): exception type and cause.
+@pytest.mark.parametrize(('kwargs', 'cause'), [
+    ({'joint_names': ['a']}, r"^robot 'bad': 1 joint names for 2 joints$"),
+    ({'tool': np.eye(3)}, r"^robot 'bad': tool.*4x4.*got shape \(3, 3\)$"),
+    ({'rows': [(0.0, 0.0, 'x', 0.0), (0.0, 0.0, 1.0, 0.0)]}, r"^robot 'bad': DH row 0 must hold 4 numbers"),
+    ({'lower': [0.0], 'upper': [1.0, 1.0]}, r"^robot 'bad': lower limits need one number or 2 numbers, got 1$"),
+    ({'max_velocity': [1.0, 1.0, 1.0]}, r"^robot 'bad': velocity limits need one number or 2 numbers, got 3$")])
+def test_regression_chain_from_dh_bad_arguments(kwargs: dict[str, Any], cause: str) -> None:
+    """Found by the fuzzer (bare IndexError / ValueError)."""
+    args = {'rows': [(0.0, 0.0, 1.0, 0.0)] * 2, 'kinds': ['revolute'] * 2, **kwargs}
+    rows, kinds = args.pop('rows'), args.pop('kinds')
+    expect_error('regression', lambda: chain_from_dh('bad', rows, kinds, **args), KinematicsError, cause)

@@ -1,19 +1,20 @@
-"""The metric: G = J_vᵀJ_v + 2 J_ωᵀJ_ω (NOTES §1) = J12ᵀJ12 from finite differences, the planar 3R
-closed form, the RRPP printed entries (NOTES §3), weights and ε, the singular traditional metric."""
+"""The metric: G = J_vᵀJ_v + 2 J_ωᵀJ_ω (docs/maths.md#metric) = J12ᵀJ12 from finite differences, the planar 3R
+closed form, the RRPP printed entries (docs/maths.md#robots), weights and ε, the singular traditional metric."""
 from __future__ import annotations
 
 import os
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
-
 import urdf_util as U
+from numpy.testing import assert_allclose
+from planning_checks import Q3_A, Q3_B, expect_error
+
 from geodesic_planner import GeodesicPlanner, load_robot
 from geodesic_planner.core.errors import RequestError, SingularMetricError
 from geodesic_planner.core.metric import Metric
 
-DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), 'geodesic_planner', 'data')
+DATA = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..', 'geodesic_planner', 'data'))
 ROBOTS = ['planar_3r', 'rrpp', 'ur5e', 'panda', os.path.join(DATA, 'kr6_like.urdf'),
           os.path.join(DATA, 'iiwa_like_7r.urdf')]
 
@@ -49,7 +50,7 @@ def test_paper_metric_is_pullback_and_geometric_identity(name):
 
 
 def test_planar_3r_metric_closed_form():
-    """g = dx² + dy² + 2 dφ², φ = θ1 + θ2 + θ3 (NOTES §3)."""
+    """g = dx² + dy² + 2 dφ², φ = θ1 + θ2 + θ3 (docs/maths.md#robots)."""
     robot = load_robot('planar_3r')
     for q in random_q(robot, np.random.default_rng(2), 10):
         t1, t12, t123 = q[0], q[0] + q[1], q.sum()
@@ -68,7 +69,7 @@ def test_planar_3r_metric_closed_form():
                                (0.5, 0.3, -0.2, 0.7), (-1.0, 2.0, 1.5, -1.2)])
 def test_rrpp_printed_metric_entries(q):
     """Paper: g22 = 2 + a3² + (d4 + d5)², g24 = a3, g33 = g44 = 1, g23 = g34 = 0 (1-based indices
-    over (θ1, θ2, d3, d4)). With Table 6 printed as d4 = 0.640 (the sign restored by NOTES is
+    over (θ1, θ2, d3, d4)). With Table 6 printed as d4 = 0.640 (the sign restored in docs/maths.md is
     negative: our d4 = −0.640 points the other way), the printed g22 is 2 + a3² + (d5 − d4)² in our
     convention; at Table 6, (0.640 + 1)² = 2.6896."""
     a3 = d5 = 1.0
@@ -151,7 +152,7 @@ def test_planner_with_traditional_metric_on_planar_3r_raises():
 
 def test_paper_metric_of_planar_3r_is_singular_when_stretched():
     """G = J_xyφᵀ diag(1, 1, 2) J_xyφ and det J_xyφ = l1 l2 sin θ2: singular at θ2 = 0 too."""
-    with pytest.raises(SingularMetricError, match='singular.*q=\\[0.4, 0.0, 0.1\\]'):
+    with pytest.raises(SingularMetricError, match=r'singular.*q=\[0.4, 0.0, 0.1\]'):
         Metric().check_regular(load_robot('planar_3r'), np.array([0.4, 0.0, 0.1]))
 
 
@@ -168,3 +169,10 @@ def test_seven_joints_need_epsilon():
     Metric(epsilon=1e-3).check_regular(robot, q)
     with pytest.raises(SingularMetricError, match='singular'):
         GeodesicPlanner(robot, epsilon=0.0).plan(None, None, start_joints=q, goal_joints=q + 0.1)
+
+
+# Deterministic regressions found by the fuzzer (test_fuzz.py): exception type and cause.
+def test_regression_position_metric_is_singular() -> None:
+    planner = GeodesicPlanner(load_robot('planar_3r'), metric='position')
+    expect_error('regression', lambda: planner.plan(None, None, Q3_A, Q3_B), SingularMetricError,
+                 r'singular .* at the start .*traditional dp² metric has rank <= 3')

@@ -1,4 +1,4 @@
-"""Piecewise geodesics through via points (paper eq. 10, issue 3 item 1).
+"""Piecewise geodesics through via points (paper eq. 10).
 
 Oracles: every via pose reached exactly (q at the breakpoint = the IK of the via pose on the
 start's branch, FK = the pose); metric speed equal on both sides of every junction and equal to
@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
-
 import urdf_util as U
+from numpy.testing import assert_allclose
+from planning_checks import expect_error
+
 from geodesic_planner import GeodesicPlanner, load_robot
 from geodesic_planner.core.errors import IKError, RequestError
 from geodesic_planner.core.metric import Metric
@@ -228,3 +229,24 @@ def test_plan_through_unreachable_via_point(ur5e, three_poses):
     far[:3, 3] = [2.0, 0.0, 0.5]
     with pytest.raises(IKError, match="IK failed for robot 'ur5e'"):
         planner.plan_through([T0, far, T2], start_joints=q0)
+
+
+# Deterministic regressions found by the fuzzer (test_fuzz.py): exception type and cause.
+def test_regression_plan_through_validates_late(planar: GeodesicPlanner) -> None:
+    """Found by the fuzzer: plan_through once checked via point i only after solving the pieces
+    before it, so a NaN via point was reported as whatever failed first (here the singular start)."""
+    robot = planar.robot
+    T_s, T_1 = robot.fk(np.array([[0.3, 0.0, 0.2], [0.5, 0.4, 0.2]]))   # start stretched: singular
+    T_bad = T_1.copy()
+    T_bad[0, 3] = np.nan
+    expect_error('regression', lambda: planar.plan_through([T_s, T_1, T_bad]), RequestError,
+                 r'^via point 2: transform contains NaN or inf$')
+
+
+def test_regression_plan_through_roundoff() -> None:
+    """Found by the fuzzer: plan_through([T, T]) on the RRPP gave a 2e-16 long path and a 1.05 µs law."""
+    robot = load_robot('rrpp')
+    T = robot.fk(robot.home)
+    path = GeodesicPlanner(robot).plan_through([T, T])
+    assert path.length == 0.0 or path.timed().duration == 0.0, \
+        f'length {path.length:.3g}, duration {path.timed().duration:.3g} s'

@@ -1,19 +1,42 @@
 """GeodesicPlanner: the public contract, bad inputs with precise errors, weighted metrics, and
-redundant (7-joint) arms with the default ε (issue 3 item 6: within 0.1 mm and 1 mrad of line +
+redundant (7-joint) arms with the default ε (within 0.1 mm and 1 mrad of line +
 slerp on ordinary moves)."""
 from __future__ import annotations
 
 import os
+import re
+from math import pi as PI
+from typing import Any
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
-
 import urdf_util as U
-from geodesic_planner import GeodesicPlanner, load_robot
-from geodesic_planner.core.errors import GeodesicPlannerError, IKError, RequestError
+from numpy.testing import assert_allclose
+from planning_checks import (
+    HOSTILE_POSES,
+    PANDA_AT_LIMITS,
+    Q3_A,
+    Q3_B,
+    S_CHECK,
+    SOLVE_TIME_LIMIT,
+    check_path,
+    check_trajectory,
+    expect_error,
+    guarded,
+)
 
-DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), 'geodesic_planner', 'data')
+from geodesic_planner import GeodesicPlanner, load_robot
+from geodesic_planner.core.errors import (
+    BVPError,
+    GeodesicPlannerError,
+    IKError,
+    LimitError,
+    RequestError,
+    SingularMetricError,
+)
+from geodesic_planner.core.transforms import so3_exp
+
+DATA = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..', 'geodesic_planner', 'data'))
 IIWA = os.path.join(DATA, 'iiwa_like_7r.urdf')
 IIWA_HOME = np.array([0.2, 0.6, -0.1, -1.2, 0.1, 0.8, 0.3])
 
@@ -262,7 +285,7 @@ def test_urdf_arm_with_singular_home_plans_ordinary_move_from_poses():
 
 # ---------------------------------------------------------------------- the pulled-back geodesic
 # On a non-redundant arm (epsilon = 0) whose line + slerp stays reachable, the geodesic is that
-# task-space geodesic pulled back by IK (NOTES.md §4): the planner verifies it at the mesh nodes
+# task-space geodesic pulled back by IK (docs/maths.md#oracles): the planner verifies it at the mesh nodes
 # instead of running Newton iterations. These tests compare it with exact oracles.
 KR6 = os.path.join(DATA, 'kr6_like.urdf')
 
@@ -384,3 +407,166 @@ def test_path_tolerance_validated():
         GeodesicPlanner(load_robot('ur5e'), path_tolerance=0.0)
     with pytest.raises(RequestError, match='path_tolerance'):
         GeodesicPlanner(load_robot('ur5e'), path_tolerance=float('nan'))
+
+
+# Deterministic regressions found by the fuzzer (test_fuzz.py): exception type and cause.
+@pytest.mark.parametrize(('start', 'goal', 'cause'), [
+    ([np.nan, 0.5, 0.1], Q3_B, r"^start_joints: joint values contain NaN or inf: \[nan, 0\.5, 0\.1\]$"),
+    (Q3_A, [0.1, np.inf, 0.2], r'^goal_joints: joint values contain NaN or inf'),
+    (Q3_A, [0.1, 0.2], r"^goal_joints: robot 'planar_3r' has 3 joints \['joint1', 'joint2', 'joint3'\], got 2 values$"),
+    ([0.0] * 4, Q3_B, r"^start_joints: robot 'planar_3r' has 3 joints .*got 4 values$"),
+    (['a', 'b', 'c'], Q3_B, r'^start_joints: not a numeric joint vector'),
+])
+def test_regression_bad_joints(planar: GeodesicPlanner, start: Any, goal: Any, cause: str) -> None:
+    expect_error('regression', lambda: planar.plan(None, None, start, goal), RequestError, cause)
+
+
+def test_regression_joints_outside_limits(planar: GeodesicPlanner) -> None:
+    expect_error('regression', lambda: planar.plan(None, None, [3.2, 0.5, 0.1], Q3_B), LimitError,
+                 r"^start joints: joint 'joint1' = 3\.2 is outside its limits \[-3\.14159, 3\.14159\]$")
+    expect_error('regression', lambda: planar.plan(None, None, Q3_A, [0.9, -3.5, 0.1]), LimitError,
+                 r"^goal joints: joint 'joint2' = -3\.5 is outside its limits")
+    # Without the limit check the same request is planned (the limits are the only objection).
+    free = GeodesicPlanner(load_robot('planar_3r'), check_limits=False)
+    path = guarded('regression', lambda: free.plan(None, None, [3.2, 0.5, 0.1], [2.9, 0.7, 0.3])).value
+    check_path(free, path, np.array([3.2, 0.5, 0.1]), np.array([2.9, 0.7, 0.3]))
+
+
+@pytest.mark.parametrize(('name', 'build', 'cause'), [(h[0], h[1], h[2]) for h in HOSTILE_POSES])
+def test_regression_bad_pose(planar: GeodesicPlanner, name: str, build: Any, cause: str) -> None:
+    T = planar.robot.fk(np.array(Q3_A))
+    expect_error('regression', lambda: planar.plan(build(T, 0.5), T), RequestError, r'^start pose: .*' + cause)
+    expect_error('regression', lambda: planar.plan(T, build(T, 0.5)), RequestError, r'^goal pose: .*' + cause)
+
+
+def test_regression_unreachable_pose(planar: GeodesicPlanner) -> None:
+    """5 m from the base of an arm of reach 3 m: the nearest reachable pose is the stretched arm
+    pointing at it, 2 m away (the orientation matches), so IKError reports residual 2."""
+    T = np.eye(4)
+    T[0, 3] = 5.0
+    err = expect_error('regression', lambda: planar.plan(planar.robot.fk(np.array(Q3_A)), T), IKError,
+                       r"^IK failed for robot 'planar_3r': nearest reachable pose is 2 away \(tolerance 0\.001\); "
+                       r'target position \[5\.0, 0\.0, 0\.0\] m')
+    assert err.residual == pytest.approx(2.0, abs=1e-9)
+    # The RRPP cannot turn its tool about every axis: a nearby pose with another orientation.
+    rrpp = load_robot('rrpp')
+    T_b = rrpp.fk(rrpp.home) @ np.block([[so3_exp(np.array([0.3, 0.0, 0.0])), np.zeros((3, 1))], [0, 0, 0, 1]])
+    expect_error('regression', lambda: GeodesicPlanner(rrpp).plan(rrpp.fk(rrpp.home), T_b), IKError,
+                 r"^IK failed for robot 'rrpp': nearest reachable pose is [0-9.]+ away")
+
+
+def test_regression_start_equals_goal(planar: GeodesicPlanner, ur5e_planner: GeodesicPlanner) -> None:
+    """start == goal: a valid zero-length path that stays put, and a trajectory of duration 0."""
+    ur5e = ur5e_planner
+    for planner, q in ((planar, np.array(Q3_A)), (ur5e, ur5e.robot.home + 0.1)):
+        T = planner.robot.fk(q)
+        for args in ((None, None, q, q), (T, T)):
+            path = guarded('regression', lambda: planner.plan(*args)).value
+            check_path(planner, path, q if args[0] is None else None, q if args[0] is None else None,
+                       args[0], args[1])
+            assert path.length == 0.0
+            qs = path.evaluate(S_CHECK)[0]
+            np.testing.assert_array_equal(qs, np.broadcast_to(path.q_start, qs.shape))
+            traj = path.timed()
+            assert traj.duration == 0.0
+            check_trajectory(path, traj, planner.robot.max_velocity, planner.robot.max_acceleration)
+
+
+@pytest.mark.parametrize(('robot_name', 'q_s', 'end'), [
+    ('planar_3r', [0.3, 0.0, 0.2], 'start'),       # stretched: θ2 = 0
+    ('planar_3r', [0.3, PI, 0.2], 'goal'),         # folded: θ2 = π
+    ('ur5e', [0.1, -1.2, 0.0, -1.0, 0.5, 0.3], 'start'),   # elbow stretched
+    ('ur5e', [0.1, -1.2, 1.0, -1.0, 0.0, 0.3], 'goal'),    # wrist: θ5 = 0
+])
+def test_regression_singular_end(robot_name: str, q_s: list[float], end: str) -> None:
+    robot = load_robot(robot_name)
+    planner = GeodesicPlanner(robot, time_limit=SOLVE_TIME_LIMIT)
+    q_s = np.array(q_s)
+    q_o = q_s + np.where(q_s > 1.0, -0.2, 0.2)
+    args = (q_s, q_o) if end == 'start' else (q_o, q_s)
+    expect_error('regression', lambda: planner.plan(None, None, *args), SingularMetricError,
+                 rf"^metric paper \(wp=1, wo=1\) is singular for robot '{robot_name}' at the {end} q=")
+
+
+def test_regression_near_singular_diverging_solve() -> None:
+    """Found by the fuzzer: both ends near the UR5e elbow singularity (θ3 ≈ 2π). The solve may fail
+    but must say so as a BVPError (it once was a SingularMetricError 'at a point of the path')."""
+    planner = GeodesicPlanner(load_robot('ur5e'), time_limit=SOLVE_TIME_LIMIT)
+    q_a, q_b = [1.45, -1.462, 6.248, 6.042, 2.332, 1.891], [1.638, -1.573, 5.883, 6.264, 2.357, 1.701]
+    out = guarded('regression', lambda: planner.plan(None, None, q_a, q_b))
+    if out.value is not None:
+        check_path(planner, out.value, np.array(q_a), np.array(q_b))
+    else:
+        assert isinstance(out.error, BVPError), out.error
+        assert re.search(r'diverged|did not converge', str(out.error)), out.error
+
+
+def test_regression_time_limit() -> None:
+    """A budget that is already spent when the solver starts: BVPError naming the limit."""
+    planner = GeodesicPlanner(load_robot('planar_3r'), time_limit=1e-9)
+    err = expect_error('regression', lambda: planner.plan(None, None, Q3_A, Q3_B), BVPError,
+                       r"^geodesic solver exceeded its time limit of 1e-09 s for robot 'planar_3r'$")
+    assert err.status == -2
+
+
+def test_regression_missing_or_too_few_ends(planar: GeodesicPlanner) -> None:
+    T = planar.robot.fk(np.array(Q3_A))
+    expect_error('regression', lambda: planar.plan(None, T), RequestError,
+                 r'^start: give a start pose or start_joints$')
+    expect_error('regression', lambda: planar.plan(T, None), RequestError, r'^goal: give a goal pose or goal_joints$')
+    expect_error('regression', lambda: planar.plan_through([T]), RequestError,
+                 r'^plan_through: needs at least 2 poses \(start and goal\), got 1$')
+
+
+@pytest.mark.parametrize(('kwargs', 'cause'), [
+    ({'metric': 'dp2'}, r"^metric: unknown metric 'dp2'"),
+    ({'position_weight': np.nan}, r'position_weight must be finite'),
+    ({'epsilon': -1.0}, r'epsilon must be finite and >= 0'), ({'nodes': 2}, r'nodes must be in \[3, max_nodes\]'),
+    ({'time_limit': 0.0}, r'time_limit must be > 0 s or None'),
+    ({'ik_tolerance': np.nan}, r'tolerance must be a positive number'),
+])
+def test_regression_bad_planner_options(kwargs: dict[str, Any], cause: str) -> None:
+    robot = load_robot('planar_3r')
+
+    def make_and_plan() -> Any:  # a few options are only checked when used
+        return GeodesicPlanner(robot, **kwargs).plan(robot.fk(np.array(Q3_A)), robot.fk(np.array(Q3_B)))
+    expect_error('regression', make_and_plan, RequestError, cause)
+
+
+def test_regression_nan_tolerance(planar: GeodesicPlanner) -> None:
+    T_a, T_b = planar.robot.fk(np.array([Q3_A, Q3_B]))
+    expect_error('regression', lambda: planar.plan(T_a, T_b, tolerance=np.nan), RequestError, r'tolerance.*nan')
+
+
+@pytest.mark.parametrize(('robot_name', 'q'), [('rrpp', None), ('ur5e', [0.3, -1.2, 1.0, -1.0, 0.5, 0.3])])
+def test_regression_roundoff_length_path(robot_name: str, q: list[float] | None) -> None:
+    """Found by the fuzzer: plan(T, T) returned goal joints a few ulp from the start and timed()
+    made a 1.05 µs law of it (sdot = 1e6, sddot = 0)."""
+    robot = load_robot(robot_name)
+    T = robot.fk(robot.home if q is None else np.array(q))
+    path = GeodesicPlanner(robot).plan(T, T)
+    assert path.length == 0.0 or path.timed().duration == 0.0, \
+        f'length {path.length:.3g}, duration {path.timed().duration:.3g} s'
+
+
+def test_regression_plan_validates_goal_late(planar: GeodesicPlanner) -> None:
+    """Found by the fuzzer: plan() solved the start IK before validating the goal, so with an
+    unreachable start a NaN goal was reported as the start's IKError."""
+    T_far = np.eye(4)
+    T_far[0, 3] = 5.0
+    T_nan = np.eye(4)
+    T_nan[0, 3] = np.nan
+    expect_error('regression', lambda: planar.plan(T_far, T_nan), RequestError,
+                 r'^goal pose: transform contains NaN or inf$')
+    expect_error('regression', lambda: planar.plan(T_far, None, None, [np.nan] * 3), RequestError,
+                 r'^goal_joints: joint values contain NaN or inf')
+
+
+def test_regression_same_pose_self_motion() -> None:
+    """Found by the fuzzer: plan(T, T) on the panda at its joint limits made a 1.3e-3 rad
+    self-motion (the goal IK, seeded with an inexact start solution, went on converging)."""
+    robot = load_robot('panda')
+    path = GeodesicPlanner(robot).plan(*[robot.fk(np.array(PANDA_AT_LIMITS))] * 2)
+    moved = float(np.abs(path.evaluate(S_CHECK)[0] - path.q_start).max())
+    assert moved == 0.0 and path.length == 0.0, f'joints moved by {moved:.3g} rad'
+    assert path.timed().duration == 0.0

@@ -2,17 +2,30 @@
 the matrix exponential)."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from planning_checks import expect_error, guarded
 from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
 from geodesic_planner.core.errors import RequestError
-from geodesic_planner.core.transforms import (check_quaternion, hat, line_slerp, make_transform,
-                                         matrix_to_quat, pose_error, pose_from_mapping,
-                                         pose_to_transform, quat_to_matrix, so3_exp, so3_log,
-                                         transform_to_pose)
+from geodesic_planner.core.transforms import (
+    check_quaternion,
+    hat,
+    line_slerp,
+    make_transform,
+    matrix_to_quat,
+    pose_error,
+    pose_from_mapping,
+    pose_to_transform,
+    quat_to_matrix,
+    so3_exp,
+    so3_log,
+    transform_to_pose,
+)
 
 RNG_SEED = 20161
 
@@ -124,7 +137,7 @@ def test_check_quaternion_normalises_within_tolerance():
     assert_allclose(q, [0, 0, 0, 1.0], atol=1e-15)
     with pytest.raises(RequestError, match=r'not normalised \(norm 1\.01'):
         check_quaternion([0.0, 0.0, 0.0, 1.01], 'goal.orientation')
-    with pytest.raises(RequestError, match='goal.orientation'):
+    with pytest.raises(RequestError, match=r'goal.orientation'):
         check_quaternion([0.0, 0.0, 0.0, 1.01], 'goal.orientation')
     with pytest.raises(RequestError, match='NaN or inf'):
         check_quaternion([0.0, float('nan'), 0.0, 1.0])
@@ -169,3 +182,24 @@ def test_pose_to_transform_and_back():
     assert_allclose(q2, q, atol=1e-14)
     with pytest.raises(RequestError, match='position needs 3 numbers'):
         pose_to_transform([1.0, 2.0], q)
+
+
+# Deterministic regressions found by the fuzzer (test_fuzz.py): exception type and cause.
+@pytest.mark.parametrize(('quat', 'cause'), [
+    ([0.0, 0.0, 0.0, 0.0], r'quaternion is not normalised \(norm 0,'),
+    ([0.0, 0.0, 0.0, 2.0], r'quaternion is not normalised \(norm 2,'),
+    ([0.0, 0.0, 0.6, 0.6], r'quaternion is not normalised \(norm 0\.848528'),
+    ([0.0, 0.0, np.nan, 1.0], r'quaternion contains NaN or inf'),
+    ([0.0, 0.0, 1.0], r'a quaternion needs 4 numbers'),
+])
+def test_regression_bad_quaternion(quat: list[float], cause: str) -> None:
+    expect_error('regression', lambda: pose_to_transform([2.5, 1.5, 0.0], quat, 'goal'), RequestError,
+                 r'^goal\.orientation: ' + cause)
+
+
+def test_regression_quaternion_just_unnormalised_is_normalised() -> None:
+    psi = math.atan2(0.5, 0.866)
+    q = np.array([0.0, 0.0, math.sin(psi / 2), math.cos(psi / 2)]) * (1 + 9e-4)
+    T = guarded('regression', lambda: pose_to_transform([2.5, 1.5, 0.0], q)).value
+    np.testing.assert_allclose(T[:3, :3], [[math.cos(psi), -math.sin(psi), 0], [math.sin(psi), math.cos(psi), 0],
+                                           [0, 0, 1]], atol=1e-15)

@@ -7,11 +7,11 @@ import os
 
 import numpy as np
 import pytest
+import urdf_util as U
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-import urdf_util as U
 from geodesic_planner import load_robot
 from geodesic_planner.core.errors import KinematicsError, RequestError
 from geodesic_planner.core.urdf import chain_from_urdf

@@ -180,9 +180,9 @@ def test_duration_round_trip() -> None:
 
 
 def _mutations() -> list[tuple[str, str]]:
-    return [('names_empty', 'empty joint_names'), ('names_dup', 'duplicate'),
-            ('no_points', 'no points'), ('short_positions', 'positions for 3 joints'),
-            ('short_velocities', 'velocities for 3 joints'), ('nan_acc', 'non-finite accelerations'),
+    return [('names_empty', 'no joint names'), ('names_dup', 'duplicate'),
+            ('no_points', 'no points'), ('short_positions', 'positions, expected 3'),
+            ('short_velocities', 'velocities, expected 3'), ('nan_acc', 'accelerations contain NaN or inf'),
             ('time_equal', 'not after'), ('time_back', 'not after')]
 
 

@@ -7,6 +7,7 @@ an event and a deadline.
 """
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import signal
@@ -111,18 +112,21 @@ class PlannerUnderTest:
         self.process = popen_node('geodesic_planner_node', *ros_args, params={'robot': robot},
                                   name=f'planner_{robot}', log_dir=log_dir)
         self.watch = [self.process]
-        self.plan_client = node.create_client(GetPlan, f'{self.name}/plan')
-        self.set_client = node.create_client(SetParameters, f'{self.name}/set_parameters')
-        self.get_client = node.create_client(GetParameters, f'{self.name}/get_parameters')
+        self._barriers = itertools.count()
+        # subscriptions before clients: the clients' warm-up round trips then prove that the
+        # node has matched them (see launch.wait_discovered)
         self.traj = Collector(node, JointTrajectory, f'{self.name}/joint_trajectory',
                               QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
         self.markers = Collector(node, MarkerArray, f'{self.name}/path_markers',
                                  QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                                             durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        for client in (self.plan_client, self.set_client, self.get_client):
-            ready(client, self.watch)
+        self.plan_client = node.create_client(GetPlan, f'{self.name}/plan')
+        self.set_client = node.create_client(SetParameters, f'{self.name}/set_parameters')
+        self.get_client = node.create_client(GetParameters, f'{self.name}/get_parameters')
         wait_until(lambda: self.traj.subscription.get_publisher_count() > 0, DEADLINE,
                    what='trajectory publisher matched', watch=self.watch)
+        for client in (self.plan_client, self.set_client, self.get_client):
+            ready(client, self.watch)
 
     def call(self, client: Any, request: Any) -> Any:
         """call_service; on a timeout, both sides' thread stacks go into the failure message."""
@@ -136,6 +140,21 @@ class PlannerUnderTest:
 
     def wait_trajectories(self, n: int) -> list[JointTrajectory]:
         return self.traj.wait_for(n, DEADLINE, watch=self.watch)
+
+    def log_mark(self, rosout: Collector) -> int:
+        """Index into ``rosout.messages`` from which on only lines caused from now on arrive.
+
+        A line logged by an earlier test may still be on its way (a reply does not mean that
+        its log line has arrived). Barrier: a harmless request whose error line names a frame
+        used once (warm-up lines are ignored by :func:`rosout_since`), waited for; the node's
+        /rosout publisher is reliable and in order, so every earlier line has arrived with it.
+        """
+        frame = f'{WARMUP_FRAME}barrier{next(self._barriers)}'
+        k = len(rosout)
+        assert not self.plan(GetPlan.Request(goal=pose_3r(*GOAL_3R, frame=frame))).plan.poses
+        return 1 + rosout.wait_for_message(
+            lambda m: m.name == self.logger and f"'{frame}'" in m.msg, k, DEADLINE,
+            what=f'the barrier line of {self.name}', watch=self.watch)
 
     def set_parameters(self, **values: Any) -> list[Any]:
         req = SetParameters.Request()
@@ -180,6 +199,8 @@ def ur5e(helper: Any, rosout: Collector,
 ROBOT_3R = load_robot('planar_3r')
 START_3R = (2.5, 1.5, math.radians(30.0))                 # paper Table 1: p and yaw of n
 GOAL_3R = (1.5, 2.5, math.atan2(0.7, 0.714))
+#: goal of a good plan that must be told apart from the paper plan by its last point
+OTHER_GOAL_3R = (GOAL_3R[0], GOAL_3R[1] - 0.01, GOAL_3R[2])
 
 
 def pose_3r(x: float, y: float, psi: float, frame: str = '') -> PoseStamped:
@@ -270,7 +291,8 @@ def wait_log(rosout: Collector, k0: int, logger: str, level: int, text: str) -> 
 # =========================================================================== tests: 3R
 
 def test_paper_3r_plan_meets_controller_contract(planar: PlannerUnderTest, rosout: Collector) -> None:
-    n0, k0 = len(planar.traj), len(rosout)
+    k0 = planar.log_mark(rosout)
+    n0 = len(planar.traj)
     resp = planar.plan(paper_request())
     msgs = planar.wait_trajectories(n0 + 1)
     assert len(msgs) == n0 + 1
@@ -306,12 +328,17 @@ def test_fresh_subscriber_gets_the_trajectory(planar: PlannerUnderTest, helper: 
                                  durability=DurabilityPolicy.TRANSIENT_LOCAL))
     fresh = Collector(helper, JointTrajectory, f'{planar.name}/joint_trajectory',
                       QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    n0 = len(planar.traj)
     try:
         for n in (1, 2):
             assert len(planar.plan(paper_request()).plan.poses) > 0
             check_controller_contract(fresh.wait_for(n, DEADLINE, watch=planar.watch)[-1],
                                       ROBOT_3R.joint_names)
+        # incompatible QoS: never matched, so it can never receive (nothing to wait for)
+        assert stale.subscription.get_publisher_count() == 0
         assert len(stale) == 0
+        # the fixture's subscription got both as well (before the next test counts from it)
+        planar.wait_trajectories(n0 + 2)
     finally:
         helper.destroy_subscription(stale.subscription)
         helper.destroy_subscription(fresh.subscription)
@@ -361,19 +388,22 @@ def _bad_requests() -> list[tuple[str, Callable[[], GetPlan.Request], str]]:
 @pytest.mark.parametrize(('case', 'make', 'cause'), _bad_requests(), ids=[c[0] for c in _bad_requests()])
 def test_failure_then_good_request(planar: PlannerUnderTest, rosout: Collector, case: str,
                                    make: Callable[[], GetPlan.Request], cause: str) -> None:
-    n0, k0 = len(planar.traj), len(rosout)
+    k0 = planar.log_mark(rosout)
+    n0 = len(planar.traj)
     resp = planar.plan(make())
     assert len(resp.plan.poses) == 0
     assert resp.plan.header.frame_id == 'base_link'
     wait_log(rosout, k0, planar.logger, ERROR, cause)
     # the node keeps serving: the next good request succeeds, and its trajectory is the only
-    # one published since (one publisher, reliable, in order: a failure's message would be first)
-    good = planar.plan(paper_request())
+    # one published since (one publisher, reliable, in order: a failure's message would be
+    # first, so the next message must be the good one; its goal differs from every bad one's)
+    good = planar.plan(request(pose_3r(*START_3R), pose_3r(*OTHER_GOAL_3R)))
     assert len(good.plan.poses) > 0
     msgs = planar.wait_trajectories(n0 + 1)
     assert len(msgs) == n0 + 1
     arr = check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
     assert_allclose(arr.positions[0], ik_3r(*START_3R), atol=1e-8)
+    assert_allclose(fk_3r(arr.positions[-1:])[0], OTHER_GOAL_3R, atol=1e-8)
     wait_log(rosout, k0, planar.logger, INFO, 'plan: ')
     errors = rosout_since(rosout, k0, planar.logger, ERROR)
     assert len(errors) == 1, [e.msg for e in errors]        # one error line naming the cause
@@ -393,15 +423,20 @@ def test_tolerance_for_unreachable_pose(planar: PlannerUnderTest, rosout: Collec
     # 5 cm out of the arm's plane: only reachable within a tolerance (3 joints, 6-D pose)
     goal = pose_3r(*GOAL_3R)
     goal.pose.position.z = 0.05
-    n0, k0 = len(planar.traj), len(rosout)
+    k0 = planar.log_mark(rosout)
+    n0 = len(planar.traj)
     assert len(planar.plan(request(pose_3r(*START_3R), goal, tolerance=0.0)).plan.poses) == 0
     wait_log(rosout, k0, planar.logger, ERROR, 'IK failed')
     assert len(planar.plan(request(pose_3r(*START_3R), goal, tolerance=0.01)).plan.poses) == 0
     resp = planar.plan(request(pose_3r(*START_3R), goal, tolerance=0.1))
     assert len(resp.plan.poses) > 0
-    msgs = planar.wait_trajectories(n0 + 1)
-    assert len(msgs) == n0 + 1                       # only the successful request published
-    arr = check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
+    # only the successful request published: a sentinel plan (its own goal) must come right
+    # after it (one publisher, in order; a failed request's plan would look like this one)
+    assert len(planar.plan(request(pose_3r(*START_3R), pose_3r(*OTHER_GOAL_3R))).plan.poses) > 0
+    msgs = planar.wait_trajectories(n0 + 2)
+    assert len(msgs) == n0 + 2
+    assert_allclose(fk_3r(cv.joint_trajectory_to_arrays(msgs[-1]).positions[-1:])[0], OTHER_GOAL_3R, atol=1e-8)
+    arr = check_controller_contract(msgs[-2], ROBOT_3R.joint_names)
     # the nearest reachable pose: same x, y, phi in the plane
     assert_allclose(fk_3r(arr.positions[-1:])[0], GOAL_3R, atol=1e-6)
     check_line_phi_3r(arr)
@@ -409,17 +444,20 @@ def test_tolerance_for_unreachable_pose(planar: PlannerUnderTest, rosout: Collec
 
 def test_plan_timeout_fails_request_and_publishes_nothing(planar: PlannerUnderTest,
                                                           rosout: Collector) -> None:
-    n0, k0 = len(planar.traj), len(rosout)
+    k0 = planar.log_mark(rosout)
+    n0 = len(planar.traj)
     try:
         assert all(r.successful for r in planar.set_parameters(plan_timeout=1e-6))
         assert len(planar.plan(paper_request()).plan.poses) == 0
         wait_log(rosout, k0, planar.logger, ERROR, 'timed out after 1e-06 s')
     finally:
         assert all(r.successful for r in planar.set_parameters(plan_timeout=5.0))
-    assert len(planar.plan(paper_request()).plan.poses) > 0
+    # the abandoned (paper) plan was never published: the next message is this one (own goal)
+    assert len(planar.plan(request(pose_3r(*START_3R), pose_3r(*OTHER_GOAL_3R))).plan.poses) > 0
     msgs = planar.wait_trajectories(n0 + 1)
-    assert len(msgs) == n0 + 1                       # the abandoned plan was never published
-    check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
+    assert len(msgs) == n0 + 1
+    arr = check_controller_contract(msgs[-1], ROBOT_3R.joint_names)
+    assert_allclose(fk_3r(arr.positions[-1:])[0], OTHER_GOAL_3R, atol=1e-8)
 
 
 def test_state_and_parameters_served_during_a_long_plan(planar: PlannerUnderTest, helper: Any,
@@ -436,7 +474,8 @@ def test_state_and_parameters_served_during_a_long_plan(planar: PlannerUnderTest
         wait_for_subscribers(pub, 1, DEADLINE, watch=planar.watch)
         assert all(r.successful for r in planar.set_parameters(
             sample_period=duration / 60000, plan_timeout=DEADLINE))
-        n1, k0 = len(planar.traj), len(rosout)
+        k0 = planar.log_mark(rosout)
+        n1 = len(planar.traj)
         future = planar.plan_client.call_async(paper_request())
         results = planar.set_parameters(velocity_scaling=1.0)
         assert all(r.successful for r in results)
@@ -517,8 +556,10 @@ def _hammer(planar: PlannerUnderTest, helper: Any, rosout: Collector, per_client
         assert len(msgs) == n0 + successes + 1
         for msg in msgs[n0:]:
             check_controller_contract(msg, ROBOT_3R.joint_names)
-        wait_until(lambda: len(rosout_since(rosout, k0, planar.logger, INFO)) >= successes + 1,
-                   DEADLINE, what='a log line per plan')
+        # the sentinel's "plan: " line is the last one (one /rosout publisher, in order): with
+        # it, every error line is in (other INFO lines, e.g. "waited ... ms", are not counted)
+        wait_until(lambda: sum(m.msg.startswith('plan: ') for m in rosout_since(rosout, k0, planar.logger, INFO))
+                   >= successes + 1, DEADLINE, what='a log line per plan')
         assert len(rosout_since(rosout, k0, planar.logger, ERROR)) == 4 * per_client - successes
         return successes
     finally:
@@ -624,7 +665,7 @@ def test_sample_period_parameter(planar: PlannerUnderTest, rosout: Collector) ->
         assert_allclose(steps[:-1], 0.05, atol=1e-9)
         assert 0.0 < steps[-1] <= 0.05 + 1e-9
         # a period so small that the message would be huge: refused with the cause, not built
-        k0 = len(rosout)
+        k0 = planar.log_mark(rosout)
         assert all(r.successful for r in planar.set_parameters(sample_period=1e-7))
         assert len(planar.plan(paper_request()).plan.poses) == 0
         wait_log(rosout, k0, planar.logger, ERROR, 'increase sample_period')
@@ -670,7 +711,7 @@ def test_plan_from_joint_states(planar: PlannerUnderTest, helper: Any, rosout: C
         assert_allclose(fk_3r(arr.positions[-1:])[0], GOAL_3R, atol=1e-8)
 
         # hostile messages, each with positions that would visibly change the start
-        k0 = len(rosout)
+        k0 = planar.log_mark(rosout)
         hostile = [
             (_joint_state(['joint1', 'joint2', 'joint3'], [1.0, 1.0]), 'names but 2 positions'),
             (_joint_state(['joint1', 'joint2', 'bogus'], [1.0, 1.0, 1.0]), "missing robot joints ['joint3']"),
@@ -694,21 +735,26 @@ def test_plan_from_joint_states(planar: PlannerUnderTest, helper: Any, rosout: C
         assert_allclose(arr.positions[0], q_s, atol=1e-12)       # still the last valid state
 
         # a well-formed state outside the joint limits is the robot's state: plans from it fail
-        k1, n2 = len(rosout), len(planar.traj)
+        k1, n2 = planar.log_mark(rosout), len(planar.traj)
         outside = _joint_state(['joint1', 'joint2', 'joint3'], [4.0, 0.1, 0.1])
+        planned_meanwhile = [0]    # plans that still started from q_s (the new state not taken yet)
 
         def refused() -> bool:
             pub.publish(outside)
-            return not planar.plan(_from_state_request()).plan.poses
+            if planar.plan(_from_state_request()).plan.poses:
+                planned_meanwhile[0] += 1
+                return False
+            return True
 
         wait_until(refused, DEADLINE, what='a refused plan from an out-of-limits state',
                    watch=planar.watch)
         wait_log(rosout, k1, planar.logger, ERROR, 'joint1=4 not in [-3.14159, 3.14159]')
         wait_until(attempt, DEADLINE, what='a plan after the state is valid again',
                    watch=planar.watch)
-        msgs = planar.wait_trajectories(n2 + 1)
-        assert len(msgs) == n2 + 1
-        assert_allclose(cv.joint_trajectory_to_arrays(msgs[-1]).positions[0], q_s, atol=1e-12)
+        msgs = planar.wait_trajectories(n2 + planned_meanwhile[0] + 1)
+        assert len(msgs) == n2 + planned_meanwhile[0] + 1
+        for msg in msgs[n2:]:
+            assert_allclose(cv.joint_trajectory_to_arrays(msg).positions[0], q_s, atol=1e-12)
     finally:
         helper.destroy_publisher(pub)
 
@@ -769,9 +815,9 @@ def test_rrpp_paper_poses_and_tolerance(start_node: Any, helper: Any) -> None:
     B = _pose_from_columns((-0.600, -0.800, -0.599), (0.105, -0.810, 0.577), (-0.016, 0.579, 0.815),
                            (-0.994, -0.095, 0.047))
     proc = start_node('geodesic_planner_node', '-r', '__ns:=/rrpp', params={'robot': 'rrpp'})
-    client = helper.create_client(GetPlan, '/rrpp/geodesic_planner/plan')
     traj = Collector(helper, JointTrajectory, '/rrpp/geodesic_planner/joint_trajectory',
                      QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    client = helper.create_client(GetPlan, '/rrpp/geodesic_planner/plan')  # its warm-up: traj matched
     try:
         ready(client, [proc])
         wait_until(lambda: traj.subscription.get_publisher_count() > 0, DEADLINE,
@@ -812,9 +858,9 @@ def test_robot_description_with_chain_ends_and_joint_names(start_node: Any, help
         'joint_names': names, 'robot': 'no_such_robot'}}}))     # robot_description wins
     proc = start_node('geodesic_planner_node', '-r', '__ns:=/kr6', '--params-file', str(params))
     robot = chain_from_urdf(xml, 'kr6_base_link', 'kr6_tool0')
-    client = helper.create_client(GetPlan, '/kr6/geodesic_planner/plan')
     traj = Collector(helper, JointTrajectory, '/kr6/geodesic_planner/joint_trajectory',
                      QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    client = helper.create_client(GetPlan, '/kr6/geodesic_planner/plan')  # its warm-up: traj matched
     try:
         ready(client, [proc])
         wait_until(lambda: traj.subscription.get_publisher_count() > 0, DEADLINE,
@@ -831,7 +877,12 @@ def test_robot_description_with_chain_ends_and_joint_names(start_node: Any, help
         assert len(call_service(client, req, DEADLINE, watch=[proc]).plan.poses) == 0
         wait_until(lambda: "frame_id 'world' is not the base frame 'kr6_base_link'"
                    in proc.log_text(), DEADLINE, what='the error line in the node log')
-        assert len(traj) == 1
+        # nothing published for it: a sentinel plan (another goal) must be the next message
+        sentinel, _, T_s = line_slerp_request(robot, np.array([0.1, -1.0, 1.1, 0.2, 0.7, 0.0]),
+                                              frame='kr6_base_link')
+        assert len(call_service(client, sentinel, DEADLINE, watch=[proc]).plan.poses) > 0
+        msgs = traj.wait_for(2, DEADLINE, watch=[proc])
+        assert_allclose(robot.fk(cv.joint_trajectory_to_arrays(msgs[1]).positions[-1]), T_s, atol=1e-6)
     finally:
         helper.destroy_client(client)
         helper.destroy_subscription(traj.subscription)
@@ -840,11 +891,11 @@ def test_robot_description_with_chain_ends_and_joint_names(start_node: Any, help
 
 def test_robot_swap_at_runtime(start_node: Any, helper: Any) -> None:
     proc = start_node('geodesic_planner_node', '-r', '__ns:=/swap', params={'robot': 'planar_3r'})
-    plan = helper.create_client(GetPlan, '/swap/geodesic_planner/plan')
-    atomic = helper.create_client(SetParametersAtomically,
-                                  '/swap/geodesic_planner/set_parameters_atomically')
     traj = Collector(helper, JointTrajectory, '/swap/geodesic_planner/joint_trajectory',
                      QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    plan = helper.create_client(GetPlan, '/swap/geodesic_planner/plan')   # warm-ups: traj matched
+    atomic = helper.create_client(SetParametersAtomically,
+                                  '/swap/geodesic_planner/set_parameters_atomically')
     robot = load_robot('ur5e')
     names = [f'ur_{n}' for n in robot.joint_names]
     try:
@@ -865,9 +916,13 @@ def test_robot_swap_at_runtime(start_node: Any, helper: Any) -> None:
         assert len(call_service(plan, req, DEADLINE, watch=[proc]).plan.poses) > 0
         arr = check_controller_contract(traj.wait_for(1, DEADLINE, watch=[proc])[0], names)
         check_line_slerp(robot, arr, T_a, T_b)
-        # the paper's 3R request is now for a 6-joint arm: unreachable, answered with a reason
+        # the paper's 3R request is now for a 6-joint arm: unreachable, answered with a reason;
+        # nothing published for it: a sentinel plan (another goal) must be the next message
         assert len(call_service(plan, paper_request(), DEADLINE, watch=[proc]).plan.poses) == 0
-        assert len(traj) == 1
+        sentinel, _, T_s = line_slerp_request(robot, np.array([0.1, -1.0, 1.1, -1.5, -1.4, 0.0]))
+        assert len(call_service(plan, sentinel, DEADLINE, watch=[proc]).plan.poses) > 0
+        msgs = traj.wait_for(2, DEADLINE, watch=[proc])
+        assert_allclose(robot.fk(cv.joint_trajectory_to_arrays(msgs[1]).positions[-1]), T_s, atol=1e-6)
     finally:
         helper.destroy_client(plan)
         helper.destroy_client(atomic)
@@ -925,9 +980,9 @@ def test_signal_exits_zero(start_node: Any, helper: Any, sig: signal.Signals) ->
 
 def test_sigint_while_planning_exits_zero(start_node: Any, helper: Any) -> None:
     proc = start_node('geodesic_planner_node', '-r', '__ns:=/busy', params={'robot': 'planar_3r'})
-    clients = [helper.create_client(GetPlan, '/busy/geodesic_planner/plan') for _ in range(2)]
     traj = Collector(helper, JointTrajectory, '/busy/geodesic_planner/joint_trajectory',
                      QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    clients = [helper.create_client(GetPlan, '/busy/geodesic_planner/plan') for _ in range(2)]
     stop = threading.Event()
 
     def hammer(client: Any) -> None:

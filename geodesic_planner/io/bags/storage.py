@@ -1,0 +1,179 @@
+"""rosbag2 storage files that can be flushed while recording (MCAP and SQLite 3).
+
+rosbags' :class:`~rosbags.rosbag2.Writer` keeps data in memory until ``close()`` (whole MCAP
+chunks of 1 MiB; one open SQLite transaction) and offers no flush. Its storage backends are
+chosen through the public class attribute ``Writer.STORAGE_PLUGINS`` and talk to the writer
+through its ``StorageWriter`` protocol (``path``, ``add_msgtype``, ``add_connection``,
+``write``, ``close``, ``abort``). :class:`FlushableWriter` plugs in the two storages below, which
+implement that protocol plus :meth:`flush`, so the recorder uses only public API:
+
+* :class:`McapStorage` writes through the ``mcap`` package's :class:`mcap.writer.Writer`
+  (``flush()`` closes the pending chunk and flushes the file);
+* :class:`Sqlite3Storage` writes the rosbag2 SQLite schema (version 4) and commits on ``flush()``.
+
+rosbags still builds the connections, type hashes and ``metadata.yaml``.
+"""
+from __future__ import annotations
+
+import sqlite3
+from importlib.metadata import version
+from typing import TYPE_CHECKING, ClassVar
+
+from mcap.writer import CompressionType
+from mcap.writer import Writer as McapWriter
+from rosbags.interfaces import MessageDefinitionFormat
+from rosbags.rosbag2 import CompressionMode, StoragePlugin, Writer, WriterError
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+    from pathlib import Path
+
+    from rosbags.interfaces import Connection
+
+__all__ = ['FlushableWriter', 'McapStorage', 'Sqlite3Storage']
+
+
+def _schema_encoding(connection: Connection) -> str:
+    return 'ros2msg' if connection.msgdef.format == MessageDefinitionFormat.MSG else 'ros2idl'
+
+
+def _serialization_format(connection: Connection) -> str:
+    return str(getattr(connection.ext, 'serialization_format', 'cdr'))
+
+
+class McapStorage:
+    """MCAP storage file ``<bag>/<bag name>.mcap`` (ROS 2 profile, uncompressed chunks of 1 MiB)."""
+
+    def __init__(self, path: Path, compression: CompressionMode) -> None:
+        """Create the file; ``path`` is the bag directory (already created by the writer).
+
+        Raises:
+            WriterError: compression requested (not supported by this recorder).
+        """
+        if compression != CompressionMode.NONE:
+            msg = 'the flushable MCAP storage writes uncompressed chunks only'
+            raise WriterError(msg)
+        self.path = path / f'{path.name}.mcap'
+        self._file = self.path.open('xb')
+        self._mcap = McapWriter(self._file, compression=CompressionType.NONE)
+        self._mcap.start(profile='ros2', library=f'geodesic_planner (mcap {version("mcap")})')
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[int, int] = {}
+
+    def add_msgtype(self, connection: Connection) -> None:
+        """Register the message definition of ``connection.msgtype`` as an MCAP schema."""
+        self._schemas[connection.msgtype] = self._mcap.register_schema(
+            connection.msgtype, _schema_encoding(connection), connection.msgdef.data.encode())
+
+    def add_connection(self, connection: Connection, offered_qos_profiles: str) -> None:
+        """Register a topic as an MCAP channel with its offered QoS (rosbag2 metadata text)."""
+        self._channels[connection.id] = self._mcap.register_channel(
+            connection.topic, _serialization_format(connection), self._schemas[connection.msgtype],
+            {'offered_qos_profiles': offered_qos_profiles, 'topic_type_hash': connection.digest})
+
+    def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
+        """Append one message; ``timestamp`` is the log time, ns since the epoch."""
+        self._mcap.add_message(self._channels[connection.id], log_time=timestamp, data=bytes(data),
+                               publish_time=timestamp)
+
+    def flush(self) -> None:
+        """Write the pending chunk (if it holds messages) and flush the file to the OS."""
+        self._mcap.flush()
+
+    def close(self, version: int, metadata: str) -> None:
+        """Write the rosbag2 metadata record, the summary and the footer; close the file."""
+        _ = version
+        try:
+            self._mcap.add_metadata('rosbag2', {'serialized_metadata': metadata})
+            self._mcap.finish()
+        finally:
+            self._file.close()
+
+    def abort(self) -> None:
+        """Close the file without summary (what was flushed stays for repair)."""
+        self._file.close()
+
+
+class Sqlite3Storage:
+    """SQLite storage file ``<bag>/<bag name>.db3`` (rosbag2 schema version 4)."""
+
+    _SCHEMA = """
+    CREATE TABLE schema(schema_version INTEGER PRIMARY KEY, ros_distro TEXT NOT NULL);
+    CREATE TABLE metadata(id INTEGER PRIMARY KEY, metadata_version INTEGER NOT NULL,
+                          metadata TEXT NOT NULL);
+    CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+                        serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL,
+                        type_description_hash TEXT NOT NULL);
+    CREATE TABLE message_definitions(id INTEGER PRIMARY KEY, topic_type TEXT NOT NULL,
+                                     encoding TEXT NOT NULL,
+                                     encoded_message_definition TEXT NOT NULL,
+                                     type_description_hash TEXT NOT NULL);
+    CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
+                          timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+    CREATE INDEX timestamp_idx ON messages (timestamp ASC);
+    INSERT INTO schema(schema_version, ros_distro) VALUES (4, 'jazzy');
+    """
+
+    def __init__(self, path: Path, compression: CompressionMode) -> None:
+        """Create the database; ``path`` is the bag directory.
+
+        Raises:
+            WriterError: storage compression requested (SQLite bags have none).
+        """
+        if compression == CompressionMode.STORAGE:
+            msg = 'SQLite 3 storage does not support storage compression'
+            raise WriterError(msg)
+        self.path = path / f'{path.name}.db3'
+        self._db = sqlite3.connect(f'file:{self.path}?mode=rwc', uri=True, check_same_thread=False)
+        self._db.executescript(self._SCHEMA)
+
+    def add_msgtype(self, connection: Connection) -> None:
+        """Store the message definition of ``connection.msgtype``."""
+        self._db.execute(
+            'INSERT INTO message_definitions (topic_type, encoding, encoded_message_definition, '
+            'type_description_hash) VALUES (?, ?, ?, ?)',
+            (connection.msgtype, _schema_encoding(connection), connection.msgdef.data, connection.digest))
+
+    def add_connection(self, connection: Connection, offered_qos_profiles: str) -> None:
+        """Store a topic with its offered QoS (rosbag2 metadata text)."""
+        self._db.execute(
+            'INSERT INTO topics VALUES (?, ?, ?, ?, ?, ?)',
+            (connection.id, connection.topic, connection.msgtype, _serialization_format(connection),
+             offered_qos_profiles, connection.digest))
+
+    def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
+        """Insert one message; ``timestamp`` is the log time, ns since the epoch."""
+        self._db.execute('INSERT INTO messages (topic_id, timestamp, data) VALUES (?, ?, ?)',
+                         (connection.id, timestamp, bytes(data)))
+
+    def flush(self) -> None:
+        """Commit the open transaction (committed rows survive a process kill)."""
+        self._db.commit()
+
+    def close(self, version: int, metadata: str) -> None:
+        """Store the rosbag2 metadata, commit and close."""
+        try:
+            self._db.execute('INSERT INTO metadata (metadata_version, metadata) VALUES (?, ?)',
+                             (version, metadata))
+            self._db.commit()
+        finally:
+            self._db.close()
+
+    def abort(self) -> None:
+        """Close; rows not yet committed are rolled back."""
+        self._db.close()
+
+
+class FlushableWriter(Writer):
+    """rosbags :class:`~rosbags.rosbag2.Writer` whose storages have a :meth:`flush`."""
+
+    STORAGE_PLUGINS: ClassVar[Mapping[StoragePlugin, type]] = {  # type: ignore[misc]
+        StoragePlugin.MCAP: McapStorage,
+        StoragePlugin.SQLITE3: Sqlite3Storage,
+    }
+
+    def flush(self) -> None:
+        """Push everything written so far to the storage file (no-op before open / after close)."""
+        storage = self.storage
+        if isinstance(storage, (McapStorage, Sqlite3Storage)):
+            storage.flush()

@@ -1,0 +1,259 @@
+"""The parameter schema of both nodes: one table of names, types, defaults and checks.
+
+Each node declares the subset it uses (:func:`declare`) and validates changes with
+:func:`rejection` in its on-set-parameters callback, so a parameter the two nodes share
+(``sample_period``, ``velocity_scaling``) has one default, one description and one rule. Checks
+that need more than one value (a limit array against the robot's joint count, a loadable model)
+belong to the planner's configuration (:func:`geodesic_planner.ros.planning.build_config`).
+
+Rejection reasons read ``<name>: <problem>``, e.g. ``velocity_scaling: must be in (0, 1], got
+1.5``.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from ..io.bags import STORAGES
+
+#: Robot used when neither ``robot`` nor ``robot_description`` is given: the paper's planar 3R arm.
+DEFAULT_ROBOT = 'planar_3r'
+METRICS = ('paper', 'position')
+DEFAULT_INPUT_TOPIC = '/geodesic_planner/joint_trajectory'
+DEFAULT_OUTPUT_TOPIC = '~/joint_trajectory'
+
+STRING, DOUBLE, DOUBLES, STRINGS = 'string', 'double', 'double array', 'string array'
+
+#: A check returns the problem with a value (without the parameter name), or None if it is fine.
+Check = Callable[[Any], 'str | None']
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter.
+
+    Attributes:
+        name: parameter name.
+        kind: STRING, DOUBLE, DOUBLES or STRINGS (shown by ``ros2 param describe``).
+        default: value when not overridden (None: the node computes it at start).
+        description: what it means, with units.
+        constraints: the accepted values, in words.
+        check: per-value check (None: any value of the kind).
+        read_only: fixed at start.
+    """
+
+    name: str
+    kind: str
+    default: Any
+    description: str
+    constraints: str = ''
+    check: Check | None = None
+    read_only: bool = False
+
+    def descriptor(self) -> ParameterDescriptor:
+        """Descriptor for ``declare_parameter``.
+
+        Numbers and arrays use dynamic typing so that the check, not rclpy, decides: an integer
+        is a valid double, and an empty array of any element type means "defaults".
+        """
+        return ParameterDescriptor(
+            description=self.description, read_only=self.read_only,
+            additional_constraints=f'{self.kind}; {self.constraints}'.rstrip('; '),
+            dynamic_typing=self.kind != STRING)
+
+
+# --------------------------------------------------------------------------- value checks
+
+def _not_number(value: Any) -> bool:
+    return isinstance(value, bool) or not isinstance(value, (int, float))
+
+
+def positive(value: Any) -> str | None:
+    """Finite and > 0."""
+    if _not_number(value):
+        return f'must be a number, got {value!r}'
+    if not (math.isfinite(float(value)) and float(value) > 0.0):
+        return f'must be finite and > 0, got {value!r}'
+    return None
+
+
+def unit_interval(value: Any) -> str | None:
+    """In (0, 1]."""
+    if _not_number(value):
+        return f'must be a number, got {value!r}'
+    if not (0.0 < float(value) <= 1.0):
+        return f'must be in (0, 1], got {value!r}'
+    return None
+
+
+def one_of(choices: Sequence[str]) -> Check:
+    """One of ``choices``."""
+    def check(value: Any) -> str | None:
+        if value not in choices:
+            return f'must be one of {", ".join(choices)}, got {value!r}'
+        return None
+    return check
+
+
+def non_empty(value: Any) -> str | None:
+    """A non-empty string."""
+    if not isinstance(value, str) or not value:
+        return f'must be a non-empty topic name, got {value!r}'
+    return None
+
+
+def _array(value: Any) -> list[Any] | None:
+    if value is None:
+        return []
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+        return None
+    return list(value)
+
+
+def positive_array(value: Any) -> str | None:
+    """An array of finite numbers > 0 (empty allowed)."""
+    vals = _array(value)
+    if vals is None or any(_not_number(v) for v in vals):
+        return f'expected an array of numbers, got {value!r}'
+    if not all(math.isfinite(float(v)) and float(v) > 0.0 for v in vals):
+        return f'every value must be finite and > 0, got {[float(v) for v in vals]}'
+    return None
+
+
+def string_array(value: Any) -> str | None:
+    """An array of strings (empty allowed)."""
+    vals = _array(value)
+    if vals is None or not all(isinstance(v, str) for v in vals):
+        return f'expected an array of strings, got {value!r}'
+    return None
+
+
+def topic_list(value: Any) -> str | None:
+    """A list of topic entries (``name`` or ``name=pkg/msg/Type``)."""
+    vals = _array(value)
+    if vals is None or not all(isinstance(v, str) and v.strip(':') for v in vals):
+        return f'must be a list of topic names, got {value!r}'
+    return None
+
+
+# --------------------------------------------------------------------------- the table
+
+_SPECS = (
+    # planner: robot model and metric
+    ParamSpec('robot', STRING, DEFAULT_ROBOT,
+              'Robot model: a preset name (planar_3r, rrpp, ur5e, panda) or a path to a .urdf file. '
+              'Ignored when robot_description is not empty.',
+              'non-empty unless robot_description is set'),
+    ParamSpec('robot_description', STRING, '',
+              'URDF XML string (as robot_state_publisher publishes it); takes precedence over '
+              'robot when not empty.'),
+    ParamSpec('base_link', STRING, '', 'Base link of the chain in the URDF (empty: the URDF root).'),
+    ParamSpec('tip_link', STRING, '', 'Tool link of the chain in the URDF (empty: the only leaf).'),
+    ParamSpec('joint_names', STRINGS, [],
+              'Joint names used on /joint_states and in published trajectories, in chain order '
+              '(empty: the model names).', 'empty or one unique name per joint', string_array),
+    ParamSpec('metric', STRING, 'paper',
+              "Riemannian metric: 'paper' (position + orientation, Chen et al. 2016) or 'position'.",
+              "'paper' or 'position'", one_of(METRICS)),
+    ParamSpec('position_weight', DOUBLE, 1.0, 'Weight of the position term of the metric.',
+              '> 0', positive),
+    ParamSpec('orientation_weight', DOUBLE, 1.0, 'Weight of the orientation term of the metric.',
+              '> 0', positive),
+    # planner: limits and outputs
+    ParamSpec('max_velocity', DOUBLES, [],
+              'Joint velocity limits, rad/s or m/s (empty: URDF/robot defaults; one value: all '
+              'joints).', 'empty, 1 or dof values, each finite and > 0', positive_array),
+    ParamSpec('max_acceleration', DOUBLES, [],
+              'Joint acceleration limits, rad/s^2 or m/s^2 (empty: robot defaults; one value: all '
+              'joints).', 'empty, 1 or dof values, each finite and > 0', positive_array),
+    # both nodes
+    ParamSpec('velocity_scaling', DOUBLE, 1.0,
+              'Time scaling factor f: durations / f, velocities * f, accelerations * f^2.',
+              'in (0, 1]', unit_interval),
+    ParamSpec('sample_period', DOUBLE, 0.01, 'Time between trajectory points, s.', 'finite, > 0',
+              positive),
+    # planner
+    ParamSpec('frame_id', STRING, '', 'Base frame of requests and outputs (empty: the model base link).'),
+    ParamSpec('plan_timeout', DOUBLE, 5.0,
+              'Longest time a request waits for its plan, s (late plans fail).', 'finite, > 0',
+              positive),
+    # processor (fixed at start)
+    ParamSpec('input_topic', STRING, DEFAULT_INPUT_TOPIC,
+              'JointTrajectory topic to process (reliable, keep_all).', 'non-empty', non_empty,
+              read_only=True),
+    ParamSpec('output_topic', STRING, DEFAULT_OUTPUT_TOPIC,
+              'Where the processed JointTrajectory is published (remap to a controller).',
+              'non-empty', non_empty, read_only=True),
+    ParamSpec('bag_path', STRING, '',
+              'New bag directory for this run (existing non-empty: a timestamped one inside or next '
+              'to it); empty disables recording.', read_only=True),
+    ParamSpec('storage', STRING, 'mcap', 'Bag storage: mcap or sqlite3.', ', '.join(STORAGES),
+              one_of(STORAGES), read_only=True),
+    ParamSpec('record_topics', STRINGS, None,
+              'Topics to record ("name", or "name=pkg/msg/Type" / "name:pkg/msg/Type" to give the '
+              'type); default: input, output, /joint_states.', '', topic_list, read_only=True),
+)
+
+#: Every parameter of either node, by name.
+SCHEMA: dict[str, ParamSpec] = {spec.name: spec for spec in _SPECS}
+
+PLANNER_PARAMETERS = ('robot', 'robot_description', 'base_link', 'tip_link', 'joint_names',
+                      'metric', 'position_weight', 'orientation_weight', 'max_velocity',
+                      'max_acceleration', 'velocity_scaling', 'sample_period', 'frame_id',
+                      'plan_timeout')
+PROCESSOR_PARAMETERS = ('input_topic', 'output_topic', 'sample_period', 'velocity_scaling',
+                        'bag_path', 'storage', 'record_topics')
+
+
+def defaults(names: Iterable[str]) -> dict[str, Any]:
+    """Default values of ``names``."""
+    return {name: SCHEMA[name].default for name in names}
+
+
+def problem(name: str, value: Any) -> str | None:
+    """Why ``value`` is not acceptable for ``name`` (``<name>: <problem>``), or None."""
+    spec = SCHEMA.get(name)
+    if spec is None or spec.check is None:
+        return None
+    found = spec.check(value)
+    return None if found is None else f'{name}: {found}'
+
+
+def rejection(params: Iterable[Parameter], names: Iterable[str]) -> str | None:
+    """Reason to reject a parameter update (the first problem among ``names``), or None.
+
+    Args:
+        params: the changed parameters.
+        names: the parameters the node owns (others are left to rclpy).
+    """
+    owned = set(names)
+    for p in params:
+        if p.name not in owned:
+            continue
+        if p.type_ == Parameter.Type.NOT_SET:
+            return f'{p.name}: cannot be undeclared'
+        reason = problem(p.name, p.value)
+        if reason is not None:
+            return reason
+    return None
+
+
+def declare(node: Node, names: Iterable[str], overrides: dict[str, Any] | None = None) -> None:
+    """Declare ``names`` on ``node`` from the schema.
+
+    Args:
+        node: the node.
+        names: parameter names, in declaration order.
+        overrides: defaults computed by the node (e.g. from resolved topic names).
+    """
+    for name in names:
+        spec = SCHEMA[name]
+        default = (overrides or {}).get(name, spec.default)
+        node.declare_parameter(name, default, spec.descriptor())

@@ -1,0 +1,149 @@
+"""The seam between paths and time laws: what a time law takes and what it returns.
+
+A time law maps a path ``q(s)``, s in [0, 1], and per-joint limits to a :class:`Trajectory`
+``q(t) = q(s(t))``. The path is only used through :class:`PathLike`, so this layer never imports
+the path module; the law's ``s(t)`` is handed to the trajectory through :class:`TimeScaling`.
+The rest-to-rest smoothing law (:class:`~geodesic_planner.timing.smoothing.SmoothRestToRest`) is
+the first implementation; a jerk-limited or constant-speed law is another module with the same
+call.
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
+
+import numpy as np
+
+from ..core.errors import LimitError
+
+if TYPE_CHECKING:
+    from .trajectory import Trajectory
+
+
+class PathLike(Protocol):
+    """A joint path q(s), s in [0, 1], as the time laws read it.
+
+    Optional attributes, read with ``getattr``: ``breakpoints`` (values of s where derivatives
+    may jump; the law rests where q' jumps) and ``robot`` (its ``max_velocity`` and
+    ``max_acceleration``, shape (dof,), are the default limits).
+    """
+
+    @property
+    def dof(self) -> int:
+        """Number of joints."""
+
+    @property
+    def joint_names(self) -> list[str]:
+        """Joint names, length dof."""
+
+    def evaluate(self, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
+        """q, dq/ds, ..., up to the ``order``-th derivative at ``s`` (N,); each (N, dof); rad or m."""
+
+
+class TimeScaling(Protocol):
+    """A law's path parameter as a function of time, ``s(t)``, on [0, duration]."""
+
+    @property
+    def duration(self) -> float:
+        """Duration of the law, s."""
+
+    def evaluate(self, t: np.ndarray, jerk: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """s, sdot, sddot and (if ``jerk``) sdddot at sorted or unsorted times ``t`` (M,), s.
+
+        Times outside [0, duration] are clipped. Units 1, 1/s, 1/s^2, 1/s^3.
+        """
+
+
+class JointLimits(NamedTuple):
+    """Validated per-joint limits.
+
+    Attributes:
+        joint_names: joint names, length dof.
+        max_velocity: shape (dof,), rad/s (m/s), positive and finite.
+        max_acceleration: shape (dof,), rad/s^2 (m/s^2), positive and finite.
+    """
+
+    joint_names: list[str]
+    max_velocity: np.ndarray
+    max_acceleration: np.ndarray
+
+
+class TimeLaw(Protocol):
+    """A time law: path and limits in, :class:`Trajectory` out, within the limits."""
+
+    def __call__(self, path: PathLike, limits: JointLimits, duration: float | None) -> Trajectory:
+        """Time ``path`` within ``limits``.
+
+        Args:
+            path: the geometric path.
+            limits: validated limits (see :func:`joint_limits`).
+            duration: if given, the trajectory lasts exactly this long, s (finite, >= 0).
+        Raises:
+            LimitError: the duration is shorter than the law's minimum, or the path cannot be
+                traversed.
+        """
+
+
+def _limit(value: Any, default: Any, dof: int, joint_names: list[str], what: str) -> np.ndarray:
+    """Validate a per-joint limit (scalar broadcast); LimitError names the joint."""
+    source = 'robot default' if value is None else 'requested'
+    if value is None:
+        value = default
+    if value is None:
+        raise LimitError(f'{what}: no limit given and the robot has no default')
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise LimitError(f'{what}: not a number or list of numbers ({err})') from err
+    if arr.ndim == 0:
+        arr = np.full(dof, float(arr))
+    arr = arr.reshape(-1)
+    if arr.shape != (dof,):
+        raise LimitError(f'{what}: expected 1 or {dof} values (one per joint), got {arr.size}')
+    bad = np.flatnonzero(~(np.isfinite(arr) & (arr > 0.0)))
+    if bad.size:
+        i = int(bad[0])
+        raise LimitError(
+            f"{what} for joint '{joint_names[i]}' must be positive and finite, got {arr[i]!r} ({source})")
+    return arr
+
+
+def joint_limits(path: PathLike, max_velocity: Any = None, max_acceleration: Any = None) -> JointLimits:
+    """The path's joint names and validated limits (the robot's where None).
+
+    Args:
+        path: the path (``dof``, ``joint_names``, optional ``robot``).
+        max_velocity: scalar or (dof,), rad/s (m/s); None: ``path.robot.max_velocity``.
+        max_acceleration: scalar or (dof,), rad/s^2 (m/s^2); None: ``path.robot.max_acceleration``.
+    Raises:
+        LimitError: a limit is missing, not a number, of the wrong size, or not positive and
+            finite (the message names the joint).
+    """
+    dof = int(path.dof)
+    joint_names = [str(n) for n in getattr(path, 'joint_names', [])]
+    if len(joint_names) != dof:
+        joint_names = joint_names or [f'joint{i + 1}' for i in range(dof)]
+        if len(joint_names) != dof:
+            raise LimitError(f'path has {len(joint_names)} joint names but {dof} joints')
+    robot = getattr(path, 'robot', None)
+    vmax = _limit(max_velocity, getattr(robot, 'max_velocity', None), dof, joint_names, 'max_velocity')
+    amax = _limit(max_acceleration, getattr(robot, 'max_acceleration', None), dof, joint_names,
+                  'max_acceleration')
+    return JointLimits(joint_names, vmax, amax)
+
+
+def check_duration(duration: Any) -> float | None:
+    """None, or ``duration`` as a finite float >= 0, s; LimitError otherwise."""
+    if duration is None:
+        return None
+    try:
+        value = float(duration)
+    except (TypeError, ValueError) as err:
+        raise LimitError(f'duration must be a number, got {duration!r}') from err
+    if not (math.isfinite(value) and value >= 0.0):
+        raise LimitError(f'duration must be finite and >= 0, got {duration!r}')
+    return value
+
+
+__all__ = ['JointLimits', 'PathLike', 'TimeLaw', 'TimeScaling', 'check_duration', 'joint_limits']
