@@ -320,9 +320,12 @@ def test_lock_pins_everything_exactly() -> None:
     assert all(re.fullmatch(r'[A-Za-z0-9_.\-]+==[A-Za-z0-9_.+\-]+', d) for d in direct), direct
     direct_names = {d.split('==')[0].lower() for d in direct}
     assert {'numpy', 'scipy', 'rosbags', 'ros-jazzy-rclpy', 'ros-jazzy-rmw-fastrtps-cpp'} <= direct_names
-    lowered = {p.lower() for p in pins}
+    def canon(pin: str) -> str:   # PEP 503 names: scikit-build-core == scikit_build_core
+        name, version = pin.split('==')
+        return re.sub(r'[-_.]+', '-', name).lower() + '==' + version
+    canonical = {canon(p) for p in pins}
     for d in direct:
-        assert d.lower() in lowered, f'{d} not pinned identically in lock.txt'
+        assert canon(d) in canonical, f'{d} not pinned identically in lock.txt'
     # Jazzy, not Kilted: rclpy 7.x and rcl 9.x.
     assert 'ros-rclpy==7.1.6' in pins and 'ros-rcl==9.2.8' in pins
     assert 'geodesic-planner' not in names
