@@ -49,7 +49,7 @@ import numpy as np
 from geodesic_planner import load_robot
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tools/ lives at the repository root
-from tools import netns  # noqa: E402
+from tools import netns
 from geodesic_planner.ros import conversions as cv
 from geodesic_planner.core.transforms import make_transform, so3_exp
 

@@ -71,7 +71,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message
 from trajectory_msgs.msg import JointTrajectory
 
-from ..io.bags import JOINT_STATE, JOINT_TRAJECTORY, STORAGES, BagRecorder, make_typestore, new_bag_path, to_cdr
+from ..io.bags import JOINT_STATE, JOINT_TRAJECTORY, BagRecorder, make_typestore, new_bag_path, to_cdr
 from ..core.errors import BagError, GeodesicPlannerError, RequestError
 from ..timing.resample import process_trajectory
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory

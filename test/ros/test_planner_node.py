@@ -23,26 +23,26 @@ import yaml
 
 pytest.importorskip('rclpy')
 
-from geometry_msgs.msg import PoseStamped  # noqa: E402
-from nav_msgs.srv import GetPlan  # noqa: E402
-from numpy.testing import assert_allclose  # noqa: E402
-from rcl_interfaces.msg import Log  # noqa: E402
-from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
-from rcl_interfaces.srv import (DescribeParameters, GetParameters, SetParameters,  # noqa: E402
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.srv import GetPlan
+from numpy.testing import assert_allclose
+from rcl_interfaces.msg import Log
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.srv import (DescribeParameters, GetParameters, SetParameters,
                                  SetParametersAtomically)
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
-from trajectory_msgs.msg import JointTrajectory  # noqa: E402
-from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+from visualization_msgs.msg import Marker, MarkerArray
 
-import geodesic_planner  # noqa: E402
-from geodesic_planner import load_robot  # noqa: E402
-from geodesic_planner.ros import conversions as cv  # noqa: E402
-from geodesic_planner.core.transforms import make_transform, pose_error, so3_exp, so3_log  # noqa: E402
-from geodesic_planner.core.urdf import chain_from_urdf  # noqa: E402
+import geodesic_planner
+from geodesic_planner import load_robot
+from geodesic_planner.ros import conversions as cv
+from geodesic_planner.core.transforms import make_transform, pose_error, so3_exp, so3_log
+from geodesic_planner.core.urdf import chain_from_urdf
 
-from .launch import (Collector, RclpyRuntime, call_service, popen_node, wait_for_service,  # noqa: E402
+from .launch import (Collector, RclpyRuntime, call_service, popen_node, wait_for_service,
                      wait_for_subscribers, wait_until, warm_up_client)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]

@@ -18,20 +18,20 @@ import yaml
 
 pytest.importorskip('rclpy')
 
-from numpy.testing import assert_allclose, assert_array_equal  # noqa: E402
-from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
-from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
-from rosbags.highlevel import AnyReader  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
-from trajectory_msgs.msg import JointTrajectory  # noqa: E402
+from numpy.testing import assert_allclose, assert_array_equal
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.srv import GetParameters, SetParameters
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
+from rosbags.highlevel import AnyReader
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
 
-from geodesic_planner.io.bags import JOINT_TRAJECTORY, bag_info, read_trajectories, to_cdr  # noqa: E402
-from geodesic_planner.ros import conversions as cv  # noqa: E402
+from geodesic_planner.io.bags import JOINT_TRAJECTORY, bag_info, read_trajectories, to_cdr
+from geodesic_planner.ros import conversions as cv
 
-from .launch import (Collector, call_service, deliver, wait_discovered, wait_for_service,  # noqa: E402
+from .launch import (Collector, call_service, deliver, wait_discovered, wait_for_service,
                      wait_for_subscribers, wait_until)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]

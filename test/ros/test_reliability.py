@@ -37,18 +37,18 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 pytest.importorskip('rclpy')
 
-from geometry_msgs.msg import PoseStamped  # noqa: E402
-from nav_msgs.srv import GetPlan  # noqa: E402
-from rcl_interfaces.srv import SetParameters  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
-from trajectory_msgs.msg import JointTrajectory  # noqa: E402
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
 
-from geodesic_planner.io.bags import bag_info, read_trajectories  # noqa: E402
-from geodesic_planner.ros import conversions as cv  # noqa: E402
+from geodesic_planner.io.bags import bag_info, read_trajectories
+from geodesic_planner.ros import conversions as cv
 
-from .launch import (Collector, NodeProcess, call_service, deliver, wait_discovered,  # noqa: E402
+from .launch import (Collector, NodeProcess, call_service, deliver, wait_discovered,
                      wait_for_subscribers, wait_until, warm_up_client)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(600)]
