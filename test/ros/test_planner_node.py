@@ -234,7 +234,7 @@ def fk_3r(q: np.ndarray) -> np.ndarray:
 
 
 def check_controller_contract(msg: JointTrajectory, names: list[str]) -> cv.TrajectoryArrays:
-    """What joint_trajectory_controller validates, plus item 4 of issue 4."""
+    """What joint_trajectory_controller validates, plus a zero stamp, all fields per point and rest at both ends."""
     assert cv.validate_joint_trajectory(msg) == []
     assert list(msg.joint_names) == names
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (0, 0)
@@ -808,7 +808,7 @@ def _pose_from_columns(p: tuple, n: tuple, o: tuple, a: tuple) -> PoseStamped:
 
 
 def test_rrpp_paper_poses_and_tolerance(start_node: Any, helper: Any) -> None:
-    # 4 joints, 6-D poses printed to 3 decimals: reachable only within a tolerance (NOTES.md 3)
+    # 4 joints, 6-D poses printed to 3 decimals: reachable only within a tolerance (docs/maths.md §3)
     robot = load_robot('rrpp')
     A = _pose_from_columns((-0.501, -0.901, -0.699), (0.100, -0.810, 0.577), (-0.102, 0.569, 0.816),
                            (-0.990, -0.141, -0.026))
@@ -837,7 +837,7 @@ def test_rrpp_paper_poses_and_tolerance(start_node: Any, helper: Any) -> None:
         assert len(msgs) == 1                              # the strict request published nothing
         arr = check_controller_contract(msgs[0], robot.joint_names)
         check_limits(arr, robot.max_velocity, robot.max_acceleration)
-        # paper Table 6 (signs restored in NOTES.md), printed to 3 decimals
+        # paper Table 6 (signs restored in docs/maths.md §5), printed to 3 decimals
         assert_allclose(arr.positions[0], [0.123, -1.539, 0.276, -0.640], atol=2e-3)
         assert_allclose(arr.positions[-1], [0.129, -1.629, 0.239, -0.643], atol=2e-3)
         dp, dr = pose_error(robot.fk(arr.positions[-1]), cv.pose_to_matrix(B.pose))

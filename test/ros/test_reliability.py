@@ -1,4 +1,4 @@
-"""Reliability of the two nodes together, started as a user starts them (issue 7, "Done when").
+"""Reliability of the two nodes together, started as a user starts them.
 
 * 4 clients (each its own rclpy context, node and executor thread: four DDS participants, as
   four user nodes would be) x N plan requests, half of them hostile
