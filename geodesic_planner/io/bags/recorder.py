@@ -262,7 +262,8 @@ class BagRecorder:
             writer = self._require_open()
             conn = self._connections.get(topic)
             if conn is None:
-                msg = f'topic {topic} is not recorded in {self._path} (recorded: {", ".join(self._connections) or "none"})'
+                recorded = ', '.join(self._connections) or 'none'
+                msg = f'topic {topic} is not recorded in {self._path} (recorded: {recorded})'
                 raise BagError(msg)
             stamp = int(stamp_ns)
             if stamp < 0:
