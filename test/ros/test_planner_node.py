@@ -7,6 +7,7 @@ an event and a deadline.
 """
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import os
@@ -79,10 +80,8 @@ def diagnose(proc: Any) -> str:
     if proc.alive():
         before = len(proc.log_text())
         os.kill(proc.pid, signal.SIGUSR1)
-        try:
+        with contextlib.suppress(AssertionError):
             wait_until(lambda: 'Thread 0x' in proc.log_text()[before:], 5.0, what='stack dump')
-        except AssertionError:
-            pass
         text += f'--- {proc.describe()} stacks:\n{proc.log_text()[before:]}\n'
     with tempfile.TemporaryFile('w+') as f:
         faulthandler.dump_traceback(f, all_threads=True)

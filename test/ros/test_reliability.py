@@ -21,6 +21,7 @@ docs/testing.md). N = 5 by default, 25 with ``--run-slow``.
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import re
 import signal
@@ -170,10 +171,8 @@ class OwnContextClient:
     def _spin(self) -> None:
         from rclpy.executors import ExternalShutdownException
 
-        try:
+        with contextlib.suppress(ExternalShutdownException):
             self.executor.spin()
-        except ExternalShutdownException:
-            pass
 
     def ready(self, watch: list[NodeProcess]) -> int:
         return warm_up(self.client, watch)
@@ -284,7 +283,8 @@ def run_scenario(nodes: dict[str, Any], ros_node: Any, per_client: int, *, good_
                             (planner_params, {'velocity_scaling': 2.0}, 'velocity_scaling: must be in (0, 1]'),
                             (planner_params, {'max_velocity': [1.0, 2.0]}, 'max_velocity: 2 values'),
                             (processor_params, {'sample_period': -0.01}, 'sample_period: must be finite and > 0'),
-                            (processor_params, {'velocity_scaling': float('inf')}, 'velocity_scaling: must be in (0, 1]')):
+                            (processor_params, {'velocity_scaling': float('inf')},
+                             'velocity_scaling: must be in (0, 1]')):
                         (res,) = set_params(client, watch, **values)
                         assert not res.successful and reason in res.reason, (values, res.reason)
                         with lock:
