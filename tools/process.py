@@ -52,7 +52,7 @@ def bin_dir() -> Path:
     return Path(sysconfig.get_path('scripts'))
 
 
-def format_param(value: Any) -> str:  # noqa: ANN401
+def format_param(value: object) -> str:
     """Format a parameter value for ``-p name:=VALUE`` (parsed as YAML by rcl).
 
     bool -> ``true``/``false``; int; float always with a decimal point (rcl tells int from

@@ -69,7 +69,7 @@ def qos_profile(
 def _qos_from_dict(item: Mapping[str, Any]) -> Qos:
     """rosbags Qos from one entry of rosbag2 ``offered_qos_profiles`` (v8 ints or v9 names)."""
 
-    def enum(cls: Any, key: str) -> Any:  # noqa: ANN401
+    def enum(cls: Any, key: str) -> Any:  # noqa: ANN401 any rosbags Qos enum class
         value = item.get(key, 0)
         try:
             return cls(value) if isinstance(value, int) else cls[str(value).upper()]
@@ -109,7 +109,7 @@ _NUMPY_TYPES = {
 }
 
 
-def _to_rosbags(obj: Any, msgtype: str, typestore: Typestore) -> object:  # noqa: ANN401
+def _to_rosbags(obj: Any, msgtype: str, typestore: Typestore) -> object:  # noqa: ANN401 duck-typed message objects
     """Convert an object with the message's attributes (e.g. an rclpy message) to rosbags'."""
     _, fields = typestore.fielddefs[msgtype]
     kwargs: dict[str, Any] = {}
