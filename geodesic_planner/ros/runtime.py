@@ -15,10 +15,10 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from types import FrameType
+from typing import Protocol
 
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException
-from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.signals import SignalHandlerOptions
 
 
@@ -58,7 +58,14 @@ def init(node_name: str, args: list[str] | None) -> bool:
     return True
 
 
-def spin_until(stop: threading.Event, executor: Executor, logger: RcutilsLogger) -> None:
+class ErrorLogger(Protocol):
+    """What :func:`spin_until` needs of a logger (``node.get_logger()``)."""
+
+    def error(self, message: str) -> object:
+        """Log ``message`` at error severity."""
+
+
+def spin_until(stop: threading.Event, executor: Executor, logger: ErrorLogger) -> None:
     """Spin until ``stop`` is set or rclpy shuts down.
 
     An exception escaping a callback (the executor re-raises it here) is logged and the node
