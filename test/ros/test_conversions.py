@@ -6,16 +6,16 @@ import pytest
 
 pytest.importorskip('rclpy')
 
-from geometry_msgs.msg import PoseStamped  # noqa: E402
-from numpy.testing import assert_allclose  # noqa: E402
-from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
-from trajectory_msgs.msg import JointTrajectory  # noqa: E402
-from visualization_msgs.msg import Marker  # noqa: E402
+from geometry_msgs.msg import PoseStamped
+from numpy.testing import assert_allclose
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+from visualization_msgs.msg import Marker
 
-from geodesic_planner.core.errors import RequestError  # noqa: E402
-from geodesic_planner.ros import conversions as cv  # noqa: E402
-from geodesic_planner.core.transforms import make_transform, so3_exp  # noqa: E402
+from geodesic_planner.core.errors import RequestError
+from geodesic_planner.ros import conversions as cv
+from geodesic_planner.core.transforms import make_transform, so3_exp
 
 pytestmark = pytest.mark.ros
 
