@@ -146,10 +146,10 @@ class GeodesicPlannerNode(Node):
         # EventsExecutor in a thread of its own (start_state_thread): a state message never waits
         # behind a plan, and it costs the plan executor nothing. The hidden node takes no global
         # arguments (a __node remap must not rename it too), so the topic is resolved here,
-        # with the user's remappings.
+        # with the user's remappings. Its (empty) parameter services stay: a client's round trip
+        # with them is how a tool knows the node has matched its endpoints (tools/graph.py).
         self.state_node = Node(f'_{self.get_name()}_joint_states', namespace=self.get_namespace(),
-                               context=self.context, use_global_arguments=False,
-                               start_parameter_services=False)
+                               context=self.context, use_global_arguments=False)
         self.joint_state_sub = self.state_node.create_subscription(
             JointState, self.resolve_topic_name('/joint_states'), self._on_joint_state,
             QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,

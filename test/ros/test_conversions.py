@@ -154,7 +154,8 @@ def _arrays(n: int = 11, dof: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarr
 def test_joint_trajectory_round_trip() -> None:
     t, q, dq, ddq = _arrays()
     msg = cv.arrays_to_joint_trajectory(['a', 'b', 'c'], t, q, dq, ddq, frame_id='base')
-    assert cv.validate_joint_trajectory(msg) == []
+    # _arrays() ends moving: a round trip of any data, not a trajectory for a controller
+    assert cv.validate_joint_trajectory(msg, require_rest_at_end=False) == []
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (0, 0)
     msg = deserialize_message(serialize_message(msg), JointTrajectory)
     arr = cv.joint_trajectory_to_arrays(msg)
