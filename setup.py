@@ -6,7 +6,8 @@ PACKAGE = 'geodesic_planner'
 setup(
     name=PACKAGE,
     version='0.1.0',
-    packages=find_packages(exclude=['test', 'test.*', 'benchmarks', 'tools', 'tools.*', 'msg_examples', 'msg_examples.*']),
+    packages=find_packages(exclude=['test', 'test.*', 'benchmarks', 'tools', 'tools.*', 'msg_examples',
+                                    'msg_examples.*']),
     package_data={PACKAGE: ['py.typed', 'data/*.urdf']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),

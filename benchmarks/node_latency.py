@@ -15,15 +15,15 @@ Starts the real node (console script ``geodesic_planner_node``) per robot, then 
 does (the node validates every message).
 
 Fair measurement: this process runs the subscriber and the 4 clients on a helper node without
-parameter services or rosout, spun by a SingleThreadedExecutor. With rclpy's
-MultiThreadedExecutor (as before issue 6 was worked on) the benchmark itself used 8-9 ms CPU per
-plan on the 2 cores it shares with the node and added 5-7 ms to the measured latency.
+parameter services or rosout, spun by a SingleThreadedExecutor: with rclpy's
+MultiThreadedExecutor the benchmark itself uses 8-9 ms CPU per plan on the 2 cores it shares with
+the node and adds 5-7 ms to the measured latency.
 
 Run inside the loopback-only network namespace (ROS must not leave the machine)::
 
     bash scripts/netns.sh .venv/bin/python benchmarks/node_latency.py [--requests 100] [--robots planar_3r ur5e] [--joint-states-hz 250]
 
-Prints a table. Not a test: nothing is asserted (issue 6 targets: ur5e median <= 15 ms, >= 50
+Prints a table. Not a test: nothing is asserted (targets: ur5e median <= 15 ms, >= 50
 plans/s with 4 clients).
 """
 from __future__ import annotations
@@ -49,7 +49,7 @@ import numpy as np
 from geodesic_planner import load_robot
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tools/ lives at the repository root
-from tools import netns  # noqa: E402
+from tools import netns
 from geodesic_planner.ros import conversions as cv
 from geodesic_planner.core.transforms import make_transform, so3_exp
 

@@ -454,9 +454,9 @@ def panda_fk_batch(qs: np.ndarray) -> np.ndarray:
 def tool_deviation(fk_batch, qs: np.ndarray, T_a: np.ndarray, T_b: np.ndarray, s: np.ndarray):
     """Largest position (m) and rotation (rad) distance of FK(qs) from line + slerp at s."""
     T = fk_batch(qs)
-    O = line_slerp_oracle(T_a, T_b, s)
-    dp = np.linalg.norm(T[:, :3, 3] - O[:, :3, 3], axis=1)
-    Rrel = np.swapaxes(T[:, :3, :3], 1, 2) @ O[:, :3, :3]
+    T_line = line_slerp_oracle(T_a, T_b, s)
+    dp = np.linalg.norm(T[:, :3, 3] - T_line[:, :3, 3], axis=1)
+    Rrel = np.swapaxes(T[:, :3, :3], 1, 2) @ T_line[:, :3, :3]
     vee = np.stack([Rrel[:, 2, 1] - Rrel[:, 1, 2], Rrel[:, 0, 2] - Rrel[:, 2, 0], Rrel[:, 1, 0] - Rrel[:, 0, 1]], 1)
     ang = np.arctan2(np.linalg.norm(vee, axis=1) / 2, (np.trace(Rrel, axis1=1, axis2=2) - 1) / 2)
     return float(dp.max()), float(ang.max())

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from geodesic_planner.core.errors import GeodesicPlannerError
+from geodesic_planner.core.kinematics import Chain
 from tools import netns
 from tools.process import NodeProcess, ToolError, popen_node, wait_until
 
@@ -75,7 +76,7 @@ def paper_poses() -> tuple[np.ndarray, np.ndarray]:
     return _yaw_pose(2.5, 1.5, math.radians(30.0)), _yaw_pose(1.5, 2.5, math.atan2(0.7, 0.714))
 
 
-def demo_poses(robot: Any) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN401
+def demo_poses(robot: Chain) -> tuple[np.ndarray, np.ndarray]:
     """Start/goal poses for ``robot``: the paper's for planar_3r, else fk(home) -> fk(home + 0.3)."""
     if robot.name == 'planar_3r':
         return paper_poses()
@@ -100,7 +101,7 @@ def segment_deviation(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nd
     return np.linalg.norm(points - (a + u[:, None] * ab), axis=1)
 
 
-def trajectory_summary(t: np.ndarray, q: np.ndarray, dq: np.ndarray | None, robot: Any,  # noqa: ANN401
+def trajectory_summary(t: np.ndarray, q: np.ndarray, dq: np.ndarray | None, robot: Chain,
                        start: np.ndarray, goal: np.ndarray) -> dict[str, Any]:
     """Numbers describing one timed trajectory.
 

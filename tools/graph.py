@@ -7,13 +7,17 @@ so ``tools`` stays importable without ROS.
 """
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import threading
 from collections.abc import Callable, Iterable
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from tools.process import DEFAULT_TIMEOUT, NodeProcess, ToolError, _check_alive, wait_until
+
+if TYPE_CHECKING:
+    from rclpy.node import Node
 
 __all__ = [
     'Collector',
@@ -207,10 +211,8 @@ class RclpyRuntime:
     def _spin(self) -> None:
         from rclpy.executors import ExternalShutdownException
 
-        try:
+        with contextlib.suppress(ExternalShutdownException):
             self.executor.spin()
-        except ExternalShutdownException:
-            pass
 
     def create_node(self, base: str = 'gp_test_node') -> Any:  # noqa: ANN401
         """A new helper node (unique name), added to the spinning executor."""
@@ -345,7 +347,7 @@ def wait_reader_matched(process: NodeProcess, topic: str, n: int = 1,
     _barrier(runtime, topic, 'subscriptions', timeout, watch)
 
 
-def wait_discovered(node: Any, target: str, timeout: float = DEFAULT_TIMEOUT, *,
+def wait_discovered(node: Node, target: str, timeout: float = DEFAULT_TIMEOUT, *,
                     watch: Iterable[NodeProcess] = ()) -> None:
     """Barrier: return once the node ``target`` (e.g. ``'/trajectory_processor'``) has discovered
     every publisher and subscription created so far in this process's rclpy context.

@@ -11,9 +11,9 @@ from pathlib import Path
 
 __all__ = [
     'ENV_OPT_OUT',
+    'is_loopback_only',
     'isolation_disabled',
     'isolation_problem',
-    'is_loopback_only',
     'network_interfaces',
     'parse_proc_net_dev',
 ]

@@ -6,6 +6,7 @@ people to read (failure messages quote its tail), never something to wait on. No
 """
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import os
@@ -51,7 +52,7 @@ def bin_dir() -> Path:
     return Path(sysconfig.get_path('scripts'))
 
 
-def format_param(value: Any) -> str:  # noqa: ANN401
+def format_param(value: object) -> str:
     """Format a parameter value for ``-p name:=VALUE`` (parsed as YAML by rcl).
 
     bool -> ``true``/``false``; int; float always with a decimal point (rcl tells int from
@@ -168,10 +169,8 @@ class NodeProcess:
         if self.popen.poll() is None:  # SIGKILL always ends it, but never hang here
             self.popen.wait(timeout=timeout)
         # Reap stragglers left in the group (e.g. a grandchild that ignored the signals).
-        try:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
             os.killpg(self.popen.pid, signal.SIGKILL)
-        except (ProcessLookupError, PermissionError):
-            pass
         return self.popen.returncode
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -39,7 +39,7 @@ __all__ = ['DEFAULT_INPUT_TOPIC', 'DEFAULT_OUTPUT_TOPIC', 'format_info', 'main',
 def _utc(stamp_ns: int | None) -> str:
     if stamp_ns is None:
         return '-'
-    return datetime.fromtimestamp(stamp_ns * 1e-9, timezone.utc).isoformat(timespec='milliseconds')
+    return datetime.fromtimestamp(stamp_ns * 1e-9, UTC).isoformat(timespec='milliseconds')
 
 
 def _num(x: float) -> str:

@@ -9,6 +9,7 @@ from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from .errors import RequestError
 from .kinematics import Chain
@@ -80,7 +81,7 @@ class JointPath(ABC):
         """Tool poses (len(s), 4, 4) along the path, base frame."""
         return self.robot.fk(self.evaluate(check_s(s))[0])
 
-    def timed(self, max_velocity: object = None, max_acceleration: object = None,
+    def timed(self, max_velocity: npt.ArrayLike | None = None, max_acceleration: npt.ArrayLike | None = None,
               duration: float | None = None) -> Trajectory:
         """Rest-to-rest time parameterization under per-joint limits (see timing.parameterize).
 

@@ -98,7 +98,7 @@ def matrix_to_quat(R: np.ndarray) -> np.ndarray:
     return out.reshape(R.shape[:-2] + (4,))
 
 
-def make_transform(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+def make_transform(position: npt.ArrayLike, rotation: npt.ArrayLike) -> np.ndarray:
     """4x4 homogeneous transform from a position (3,) in m and a rotation matrix (3, 3)."""
     T = np.eye(4)
     T[:3, :3] = rotation

@@ -7,9 +7,13 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 #: Line styles per method (geodesic solid, polynomial dashed), as in the paper's legends.
 STYLES = {'geodesic': {'ls': '-', 'lw': 1.6}, 'polynomial': {'ls': '--', 'lw': 1.2},
@@ -17,7 +21,7 @@ STYLES = {'geodesic': {'ls': '-', 'lw': 1.6}, 'polynomial': {'ls': '--', 'lw': 1
 DPI = 80
 
 
-def _figure(figsize: tuple[float, float]) -> Any:
+def _figure(figsize: tuple[float, float]) -> Figure:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     fig = Figure(figsize=figsize, dpi=DPI)
@@ -25,7 +29,7 @@ def _figure(figsize: tuple[float, float]) -> Any:
     return fig
 
 
-def _save(fig: Any, out_dir: str, name: str) -> str:
+def _save(fig: Figure, out_dir: str, name: str) -> str:
     path = os.path.join(out_dir, name)
     fig.tight_layout()
     try:
@@ -43,7 +47,7 @@ def is_planar(profiles: dict[str, dict[str, np.ndarray]]) -> bool:
     return True
 
 
-def _tidy(ax: Any, arrays: list[np.ndarray]) -> None:
+def _tidy(ax: Axes, arrays: list[np.ndarray]) -> None:
     """No offset notation; a flat curve (round-off only) gets a +-5 % band instead of noise."""
     ax.ticklabel_format(axis='y', useOffset=False)
     vals = np.concatenate([np.ravel(a) for a in arrays])
@@ -196,12 +200,18 @@ def _joints(profiles: dict[str, Any], out_dir: str, title: str) -> str:
 class JointSeries(Protocol):
     """A sampled joint trajectory (e.g. :class:`geodesic_planner.io.bags.TrajectoryRecord`)."""
 
-    topic: str
-    joint_names: list[str]
-    t: np.ndarray
-    positions: np.ndarray
-    velocities: np.ndarray | None
-    accelerations: np.ndarray | None
+    @property
+    def topic(self) -> str: ...
+    @property
+    def joint_names(self) -> list[str]: ...
+    @property
+    def t(self) -> np.ndarray: ...
+    @property
+    def positions(self) -> np.ndarray: ...
+    @property
+    def velocities(self) -> np.ndarray | None: ...
+    @property
+    def accelerations(self) -> np.ndarray | None: ...
 
 
 def plot_trajectories(path: str | os.PathLike[str], columns: Sequence[tuple[str, JointSeries | None]], *,

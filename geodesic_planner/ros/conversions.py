@@ -42,7 +42,7 @@ def _darray(row: np.ndarray) -> array.array:
 
 def seconds_to_duration(t: float) -> Duration:
     """builtin_interfaces/Duration from seconds (rounded to the nanosecond)."""
-    ns = int(round(float(t) * 1e9))
+    ns = round(float(t) * 1e9)
     return Duration(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 

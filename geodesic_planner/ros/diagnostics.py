@@ -66,8 +66,9 @@ class NodeStatus:
     def publish(self) -> None:
         """Publish the current status now."""
         with self._lock:
+            values = [KeyValue(key=k, value=v) for k, v in self._values.items()]
             status = DiagnosticStatus(level=self._level, name=self._name, message=self._message,
-                                      hardware_id='', values=[KeyValue(key=k, value=v) for k, v in self._values.items()])
+                                      hardware_id='', values=values)
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self._node.get_clock().now().to_msg()
         try:

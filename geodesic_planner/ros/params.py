@@ -32,7 +32,7 @@ DEFAULT_OUTPUT_TOPIC = '~/joint_trajectory'
 STRING, DOUBLE, DOUBLES, STRINGS = 'string', 'double', 'double array', 'string array'
 
 #: A check returns the problem with a value (without the parameter name), or None if it is fine.
-Check = Callable[[Any], 'str | None']
+Check = Callable[[object], 'str | None']
 
 
 @dataclass(frozen=True)
@@ -71,22 +71,22 @@ class ParamSpec:
 
 # --------------------------------------------------------------------------- value checks
 
-def _not_number(value: Any) -> bool:
+def _not_number(value: object) -> bool:
     return isinstance(value, bool) or not isinstance(value, (int, float))
 
 
-def positive(value: Any) -> str | None:
+def positive(value: object) -> str | None:
     """Finite and > 0."""
-    if _not_number(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
         return f'must be a number, got {value!r}'
     if not (math.isfinite(float(value)) and float(value) > 0.0):
         return f'must be finite and > 0, got {value!r}'
     return None
 
 
-def unit_interval(value: Any) -> str | None:
+def unit_interval(value: object) -> str | None:
     """In (0, 1]."""
-    if _not_number(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
         return f'must be a number, got {value!r}'
     if not (0.0 < float(value) <= 1.0):
         return f'must be in (0, 1], got {value!r}'
@@ -95,21 +95,21 @@ def unit_interval(value: Any) -> str | None:
 
 def one_of(choices: Sequence[str]) -> Check:
     """One of ``choices``."""
-    def check(value: Any) -> str | None:
+    def check(value: object) -> str | None:
         if value not in choices:
             return f'must be one of {", ".join(choices)}, got {value!r}'
         return None
     return check
 
 
-def non_empty(value: Any) -> str | None:
+def non_empty(value: object) -> str | None:
     """A non-empty string."""
     if not isinstance(value, str) or not value:
         return f'must be a non-empty topic name, got {value!r}'
     return None
 
 
-def _array(value: Any) -> list[Any] | None:
+def _array(value: object) -> list[Any] | None:
     if value is None:
         return []
     if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
@@ -117,7 +117,7 @@ def _array(value: Any) -> list[Any] | None:
     return list(value)
 
 
-def positive_array(value: Any) -> str | None:
+def positive_array(value: object) -> str | None:
     """An array of finite numbers > 0 (empty allowed)."""
     vals = _array(value)
     if vals is None or any(_not_number(v) for v in vals):
@@ -127,7 +127,7 @@ def positive_array(value: Any) -> str | None:
     return None
 
 
-def string_array(value: Any) -> str | None:
+def string_array(value: object) -> str | None:
     """An array of strings (empty allowed)."""
     vals = _array(value)
     if vals is None or not all(isinstance(v, str) for v in vals):
@@ -135,7 +135,7 @@ def string_array(value: Any) -> str | None:
     return None
 
 
-def topic_list(value: Any) -> str | None:
+def topic_list(value: object) -> str | None:
     """A list of topic entries (``name`` or ``name=pkg/msg/Type``)."""
     vals = _array(value)
     if vals is None or not all(isinstance(v, str) and v.strip(':') for v in vals):
@@ -217,7 +217,7 @@ def defaults(names: Iterable[str]) -> dict[str, Any]:
     return {name: SCHEMA[name].default for name in names}
 
 
-def problem(name: str, value: Any) -> str | None:
+def problem(name: str, value: object) -> str | None:
     """Why ``value`` is not acceptable for ``name`` (``<name>: <problem>``), or None."""
     spec = SCHEMA.get(name)
     if spec is None or spec.check is None:

@@ -25,10 +25,11 @@ Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default)
 Parameters (:data:`geodesic_planner.ros.params.PLANNER_PARAMETERS`, from the schema shared with
 the processor node; ``ros2 param describe`` shows its descriptions) are checked one by one
 against the schema, then together in the on-set callback, which builds a new
-:class:`~geodesic_planner.ros.planning.PlannerConfig` or rejects the change with a reason; nothing changes on rejection. ``robot``/``robot_description``/``base_link``/
-``tip_link`` may change at run time (the model is reloaded); to change the robot and
-``joint_names`` together use ``set_parameters_atomically`` (the per-parameter service checks each
-change against the others' current values). Invalid values at start: one ``cannot start: ...``
+:class:`~geodesic_planner.ros.planning.PlannerConfig` or rejects the change with a reason;
+nothing changes on rejection. ``robot``/``robot_description``/``base_link``/``tip_link`` may change
+at run time (the model is reloaded); to change the robot and ``joint_names`` together use
+``set_parameters_atomically`` (the per-parameter service checks each change against the others'
+current values). Invalid values at start: one ``cannot start: ...``
 error line and exit code 1.
 
 Timing and the pipeline (parameters -> configuration, request -> messages):
@@ -74,7 +75,7 @@ from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -110,7 +111,7 @@ class GeodesicPlannerNode(Node):
         ConfigError: the initial parameters are invalid or the robot cannot be loaded.
     """
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 rclpy Node options, passed through
         super().__init__(NODE_NAME, **kwargs)
         params.declare(self, PLANNER_PARAMETERS)
         self._config_lock = threading.Lock()
@@ -145,16 +146,16 @@ class GeodesicPlannerNode(Node):
         # EventsExecutor in a thread of its own (start_state_thread): a state message never waits
         # behind a plan, and it costs the plan executor nothing. The hidden node takes no global
         # arguments (a __node remap must not rename it too), so the topic is resolved here,
-        # with the user's remappings.
+        # with the user's remappings. Its (empty) parameter services stay: a client's round trip
+        # with them is how a tool knows the node has matched its endpoints (tools/graph.py).
         self.state_node = Node(f'_{self.get_name()}_joint_states', namespace=self.get_namespace(),
-                               context=self.context, use_global_arguments=False,
-                               start_parameter_services=False)
+                               context=self.context, use_global_arguments=False)
         self.joint_state_sub = self.state_node.create_subscription(
             JointState, self.resolve_topic_name('/joint_states'), self._on_joint_state,
             QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                        reliability=ReliabilityPolicy.BEST_EFFORT,
                        durability=DurabilityPolicy.VOLATILE))
-        self._state_executor: EventsExecutor | None = None
+        self._state_executor: Executor | None = None  # an EventsExecutor (a factory function)
         self._state_thread: threading.Thread | None = None
         self._states_stop = threading.Event()
         self.plan_srv = self.create_service(

@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from nav_msgs.msg import Path
 from nav_msgs.srv import GetPlan
 from trajectory_msgs.msg import JointTrajectory
@@ -26,6 +27,7 @@ from visualization_msgs.msg import MarkerArray
 
 from .. import GeodesicPlanner, load_robot
 from ..core.errors import GeodesicPlannerError, LimitError, RequestError
+from ..core.kinematics import Chain
 from . import conversions as cv
 from . import params
 from .params import PLANNER_PARAMETERS
@@ -90,7 +92,7 @@ class PlanResult:
     mesh_size: int = 0
 
 
-def _limits(name: str, value: Any, default: np.ndarray, dof: int) -> np.ndarray:
+def _limits(name: str, value: Sequence[float] | np.ndarray | None, default: np.ndarray, dof: int) -> np.ndarray:
     """Per-joint limits from a checked parameter value: empty -> default, 1 value -> all joints."""
     vals = [] if value is None else list(value)
     if not vals:
@@ -102,7 +104,7 @@ def _limits(name: str, value: Any, default: np.ndarray, dof: int) -> np.ndarray:
     return np.broadcast_to(arr, (dof,)).copy()
 
 
-def load_model(robot: str, robot_description: str, base_link: str, tip_link: str) -> Any:
+def load_model(robot: str, robot_description: str, base_link: str, tip_link: str) -> Chain:
     """Robot model from a URDF string (when not empty) or a preset name / URDF path.
 
     Raises:
@@ -193,12 +195,12 @@ def _tolerance(value: float) -> float | None:
     return tol if tol > 0.0 else None
 
 
-class PlanAbandoned(Exception):
+class PlanAbandonedError(Exception):
     """Raised by :func:`compute_plan` when ``on_trajectory`` declines the trajectory."""
 
 
 def compute_plan(config: PlannerConfig, request: GetPlan.Request,
-                 current_q: np.ndarray | None, stamp: Any = None,
+                 current_q: np.ndarray | None, stamp: Time | None = None,
                  on_trajectory: Callable[[JointTrajectory], bool] | None = None) -> PlanResult:
     """Plan for one GetPlan request (no ROS I/O: messages in, messages out).
 
@@ -212,7 +214,7 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
             returning False abandons the plan.
     Raises:
         GeodesicPlannerError: invalid or unreachable request, solver failure (message names the cause).
-        PlanAbandoned: ``on_trajectory`` returned False.
+        PlanAbandonedError: ``on_trajectory`` returned False.
     """
     goal = cv.pose_stamped_to_matrix(request.goal, config.frame_id, 'goal')
     tolerance = _tolerance(request.tolerance)
@@ -254,7 +256,7 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
         raise RuntimeError(f'generated trajectory is invalid: {problems[:3]}')
     t3 = time.perf_counter()
     if on_trajectory is not None and not on_trajectory(msg):
-        raise PlanAbandoned
+        raise PlanAbandonedError
     t4 = time.perf_counter()
     tool = config.robot.fk(q)
     path_msg = cv.poses_to_path(tool, config.frame_id, stamp)

@@ -55,6 +55,7 @@ node keeps going.
 """
 from __future__ import annotations
 
+import functools
 import importlib
 import threading
 import time
@@ -63,15 +64,16 @@ from typing import Any
 import rclpy
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import NameValidationException, ParameterException
-from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.event_handler import QoSMessageLostInfo, QoSSubscriptionMatchedInfo, SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
+from rclpy.timer import Timer
 from trajectory_msgs.msg import JointTrajectory
 
-from ..io.bags import JOINT_STATE, JOINT_TRAJECTORY, STORAGES, BagRecorder, make_typestore, new_bag_path, to_cdr
+from ..io.bags import JOINT_STATE, JOINT_TRAJECTORY, BagRecorder, make_typestore, new_bag_path, to_cdr
 from ..core.errors import BagError, GeodesicPlannerError, RequestError
 from ..timing.resample import process_trajectory
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory
@@ -101,7 +103,7 @@ class TrajectoryProcessorNode(Node):
         BagError: the bag cannot be created.
     """
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 rclpy Node options, passed through
         super().__init__(NODE_NAME, **kwargs)
         # Registered before declaring: initial overrides (-p ...) are validated too.
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -144,7 +146,7 @@ class TrajectoryProcessorNode(Node):
         self.recorder: BagRecorder | None = None
         self._extra_subs: dict[str, Any] = {}
         self._pending_types: list[str] = []
-        self._discovery_timer = None
+        self._discovery_timer: Timer | None = None
         if self.get_parameter('bag_path').value:
             self._start_recording()
         else:
@@ -213,7 +215,8 @@ class TrajectoryProcessorNode(Node):
         for topic, msgtype in extra.items():
             self._subscribe_raw(topic, msgtype)
         if self._pending_types:
-            self.get_logger().info(f'waiting for publishers to learn the types of {", ".join(self._pending_types)}')
+            pending = ', '.join(self._pending_types)
+            self.get_logger().info(f'waiting for publishers to learn the types of {pending}')
             self._discovery_timer = self.create_timer(0.5, self._discover_types)
 
     def _subscribe_raw(self, topic: str, msgtype: str) -> None:
@@ -225,10 +228,10 @@ class TrajectoryProcessorNode(Node):
             raise RequestError(msg) from err
         # Best available: reliable with reliable publishers, best effort otherwise.
         events = SubscriptionEventCallbacks(
-            matched=lambda status, t=topic: self._log_matched(t, status),
-            message_lost=lambda status, t=topic: self._log_lost(t, status))
+            matched=functools.partial(self._log_matched, topic),
+            message_lost=functools.partial(self._log_lost, topic))
         self._extra_subs[topic] = self.create_subscription(
-            cls, topic, lambda raw, t=topic: self._record(t, raw),
+            cls, topic, functools.partial(self._record, topic),
             _qos(ReliabilityPolicy.BEST_AVAILABLE, keep_all=True), event_callbacks=events, raw=True)
 
     def _discover_types(self) -> None:
@@ -278,22 +281,22 @@ class TrajectoryProcessorNode(Node):
             f'recorded unprocessed at shutdown {self.unprocessed}')
 
     # ------------------------------------------------------------------ processing
-    def _log_matched(self, topic: str, status: Any) -> None:  # noqa: ANN401
+    def _log_matched(self, topic: str, status: QoSSubscriptionMatchedInfo) -> None:
         if status.current_count_change:
             self.get_logger().info(f'{topic}: {status.current_count} publisher(s) matched')
 
-    def _log_lost(self, topic: str, status: Any) -> None:  # noqa: ANN401
+    def _log_lost(self, topic: str, status: QoSMessageLostInfo) -> None:
         self.get_logger().error(
             f'{topic}: {status.total_count_change} message(s) lost before reception '
             f'({status.total_count} in total)')
 
-    def _on_input_matched(self, status: Any) -> None:  # noqa: ANN401
+    def _on_input_matched(self, status: QoSSubscriptionMatchedInfo) -> None:
         # A volatile reader gets only what is published after *it* matched the writer, and only
         # this node knows when that is: the count goes to /diagnostics for scripts to wait on.
         self._log_matched(f'input {self.input_topic}', status)
         self.status.set(input_publishers_matched=status.current_count)
 
-    def _on_input_lost(self, status: Any) -> None:  # noqa: ANN401
+    def _on_input_lost(self, status: QoSMessageLostInfo) -> None:
         self._log_lost(f'input {self.input_topic}', status)
 
     def _on_input(self, raw: bytes) -> None:

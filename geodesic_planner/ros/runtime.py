@@ -14,7 +14,8 @@ import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any
+from types import FrameType
+from typing import Protocol
 
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException
@@ -29,7 +30,7 @@ def stop_on_signals() -> Iterator[threading.Event]:
     """
     stop = threading.Event()
 
-    def on_signal(signum: int, frame: Any) -> None:  # noqa: ANN401
+    def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
@@ -57,7 +58,14 @@ def init(node_name: str, args: list[str] | None) -> bool:
     return True
 
 
-def spin_until(stop: threading.Event, executor: Executor, logger: Any) -> None:  # noqa: ANN401
+class ErrorLogger(Protocol):
+    """What :func:`spin_until` needs of a logger (``node.get_logger()``)."""
+
+    def error(self, message: str) -> object:
+        """Log ``message`` at error severity."""
+
+
+def spin_until(stop: threading.Event, executor: Executor, logger: ErrorLogger) -> None:
     """Spin until ``stop`` is set or rclpy shuts down.
 
     An exception escaping a callback (the executor re-raises it here) is logged and the node

@@ -1,12 +1,11 @@
 """Small numpy helpers shared by the timing modules (cheaper than numpy's generic versions here)."""
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
+import numpy.typing as npt
 
 
-def clip(x: Any, lo: Any, hi: Any) -> np.ndarray:
+def clip(x: npt.ArrayLike, lo: npt.ArrayLike, hi: npt.ArrayLike) -> np.ndarray:
     """np.clip without its per-call overhead (it dominates on the small arrays used here)."""
     return np.minimum(np.maximum(x, lo), hi)
 

@@ -10,9 +10,10 @@ call.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.errors import LimitError
 
@@ -85,7 +86,8 @@ class TimeLaw(Protocol):
         """
 
 
-def _limit(value: Any, default: Any, dof: int, joint_names: list[str], what: str) -> np.ndarray:
+def _limit(value: npt.ArrayLike | None, default: npt.ArrayLike | None, dof: int, joint_names: list[str],
+           what: str) -> np.ndarray:
     """Validate a per-joint limit (scalar broadcast); LimitError names the joint."""
     source = 'robot default' if value is None else 'requested'
     if value is None:
@@ -109,7 +111,8 @@ def _limit(value: Any, default: Any, dof: int, joint_names: list[str], what: str
     return arr
 
 
-def joint_limits(path: PathLike, max_velocity: Any = None, max_acceleration: Any = None) -> JointLimits:
+def joint_limits(path: PathLike, max_velocity: npt.ArrayLike | None = None,
+                 max_acceleration: npt.ArrayLike | None = None) -> JointLimits:
     """The path's joint names and validated limits (the robot's where None).
 
     Args:
@@ -133,7 +136,7 @@ def joint_limits(path: PathLike, max_velocity: Any = None, max_acceleration: Any
     return JointLimits(joint_names, vmax, amax)
 
 
-def check_duration(duration: Any) -> float | None:
+def check_duration(duration: float | None) -> float | None:
     """None, or ``duration`` as a finite float >= 0, s; LimitError otherwise."""
     if duration is None:
         return None

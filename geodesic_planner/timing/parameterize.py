@@ -8,7 +8,7 @@ default is the smooth rest-to-rest law of :mod:`.smoothing`. The path never chan
 """
 from __future__ import annotations
 
-from typing import Any
+import numpy.typing as npt
 
 from .law import PathLike, TimeLaw, check_duration, joint_limits
 from .sampling import CORNER_TOLERANCE
@@ -16,7 +16,8 @@ from .smoothing import CHECK_MARGIN, TOPP_MARGIN, SmoothRestToRest
 from .trajectory import Trajectory
 
 
-def time_parameterize(path: PathLike, max_velocity: Any = None, max_acceleration: Any = None,
+def time_parameterize(path: PathLike, max_velocity: npt.ArrayLike | None = None,
+                      max_acceleration: npt.ArrayLike | None = None,
                       duration: float | None = None, *, law: TimeLaw | None = None,
                       grid_points: int = 100, refine: int = 2, smoothing: float = 0.05,
                       check_samples: int | None = None) -> Trajectory:

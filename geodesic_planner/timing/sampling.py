@@ -9,6 +9,7 @@ further exact evaluations until they agree. Derivatives are w.r.t. s in [0, 1].
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -143,8 +144,8 @@ def sample_path(path: PathLike, grid_points: int) -> PathSamples:
         # Each piece between breakpoints: uniform steps of about 1 / grid_points, at least
         # MIN_PIECE_STEPS of them (a piece may start and end at rest).
         ends = np.concatenate([[0.0], interior, [1.0]])
-        parts = [np.linspace(a, b, max(MIN_PIECE_STEPS, int(math.ceil((b - a) * grid_points))) + 1)[:-1]
-                 for a, b in zip(ends[:-1], ends[1:])]
+        parts = [np.linspace(a, b, max(MIN_PIECE_STEPS, math.ceil((b - a) * grid_points)) + 1)[:-1]
+                 for a, b in itertools.pairwise(ends)]
         nodes = np.concatenate(parts + [np.ones(1)])
     else:
         nodes = np.linspace(0.0, 1.0, grid_points + 1)
@@ -182,7 +183,8 @@ def _interpolation_suspects(h: np.ndarray, left: np.ndarray, right: np.ndarray, 
     """
     d2 = 2 * dof
     # (q', q'') and their slopes (q'', q''') at both ends of each step: the Hermite mid-points.
-    mid_1 = 0.5 * (left[:, 3 * dof:3 * dof + d2] + right[:, :d2]) + h * (left[:, 4 * dof:] - right[:, dof:dof + d2]) / 8.0
+    mid_1 = (0.5 * (left[:, 3 * dof:3 * dof + d2] + right[:, :d2])
+             + h * (left[:, 4 * dof:] - right[:, dof:dof + d2]) / 8.0)
     a0, b0, c0 = left[:, 3 * dof:4 * dof], left[:, 4 * dof:5 * dof], left[:, 5 * dof:]
     b1, c1 = right[:, dof:2 * dof], right[:, 2 * dof:3 * dof]
     a_mid_2 = a0 + h * (13.0 / 32.0 * b0 + 11.0 / 192.0 * h * c0 + 3.0 / 32.0 * b1 - 5.0 / 192.0 * h * c1)

@@ -103,7 +103,7 @@ class PiecewiseLaw:
         if nl == 1:
             local = clip(t, 0.0, self.duration)
             tau, dur, s_start, span, s_end = self.pieces[:5, 0].tolist()
-            key_off = 0.0
+            key_off: float | np.ndarray = 0.0
         else:
             # Times within round-off of a rest snap onto it (exact rest there).
             j = clip(np.searchsorted(offs, t), 1, offs.size - 1)

@@ -3,9 +3,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.errors import LimitError
 from ._arrays import clip
@@ -51,7 +52,7 @@ class Trajectory:
             return float('nan')
         return self.min_duration / self.topp_duration
 
-    def s_of_t(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def s_of_t(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Path parameter and its time derivatives.
 
         Args:
@@ -62,7 +63,7 @@ class Trajectory:
         s, sd, sdd, _ = self._s_all(t)
         return s, sd, sdd
 
-    def _s_all(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _s_all(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         if not np.all(np.isfinite(t)):
             raise LimitError('times must be finite')
@@ -76,7 +77,7 @@ class Trajectory:
         assert sddd is not None  # asked for (jerk=True)
         return s, sd / lam, sdd / lam**2, sddd / lam**3
 
-    def at_time(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def at_time(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint positions, velocities and accelerations at times ``t``.
 
         Args:
@@ -89,7 +90,7 @@ class Trajectory:
         q1 = np.asarray(q1)
         return np.asarray(q), q1 * sd[:, None], q1 * sdd[:, None] + np.asarray(q2) * (sd**2)[:, None]
 
-    def jerk_at_time(self, t: Any) -> np.ndarray:
+    def jerk_at_time(self, t: npt.ArrayLike) -> np.ndarray:
         """Joint jerk d3q/dt3 at times ``t`` (M,) -> (M, dof); rad/s^3 (m/s^3)."""
         s, sd, sdd, sddd = self._s_all(t)
         _, q1, q2, q3 = self.path.evaluate(s, order=3)
@@ -107,7 +108,7 @@ class Trajectory:
         T = self.duration
         if T <= 0.0:
             return np.zeros(1)
-        n = int(math.floor(T / dt + 1e-9))
+        n = math.floor(T / dt + 1e-9)
         t = np.arange(n + 1, dtype=float) * dt
         if T - t[-1] <= max(1e-9, 1e-6 * dt):
             t[-1] = T

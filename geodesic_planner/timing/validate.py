@@ -9,10 +9,10 @@ processor and the bag tools all use this one list of rules.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.errors import TrajectoryError
 
@@ -44,7 +44,7 @@ class _Problems:
         return self.text
 
 
-def _rows(values: Any, what: str, problems: _Problems) -> tuple[np.ndarray, np.ndarray] | None:
+def _rows(values: Iterable[npt.ArrayLike], what: str, problems: _Problems) -> tuple[np.ndarray, np.ndarray] | None:
     """Row sizes (P,) and all values flattened, of a (P, dof) array or P ragged rows; None if unreadable."""
     try:
         arr = np.asarray(values, dtype=float)
@@ -63,7 +63,7 @@ def _rows(values: Any, what: str, problems: _Problems) -> tuple[np.ndarray, np.n
     return sizes, (np.concatenate(rows) if rows else np.zeros(0))
 
 
-def _check_field(values: Any, what: str, names: list[str], n_points: int, allow_empty: bool,
+def _check_field(values: Iterable[npt.ArrayLike], what: str, names: list[str], n_points: int, allow_empty: bool,
                  problems: _Problems) -> np.ndarray | None:
     """Sizes and finiteness of one per-point field; the last point's values when dof long."""
     parsed = _rows(values, what, problems)
@@ -88,8 +88,9 @@ def _check_field(values: Any, what: str, names: list[str], n_points: int, allow_
     return None
 
 
-def trajectory_problems(joint_names: Sequence[str], times: Any, positions: Any,
-                        velocities: Any = None, accelerations: Any = None, *,
+def trajectory_problems(joint_names: Sequence[str], times: npt.ArrayLike, positions: Iterable[npt.ArrayLike],
+                        velocities: Iterable[npt.ArrayLike] | None = None,
+                        accelerations: Iterable[npt.ArrayLike] | None = None, *,
                         require_rest_at_end: bool = True) -> list[str]:
     """The reasons JTC would reject a joint trajectory; empty if it would accept it.
 
@@ -150,8 +151,9 @@ def trajectory_problems(joint_names: Sequence[str], times: Any, positions: Any,
     return problems.result()
 
 
-def check_trajectory(joint_names: Sequence[str], times: Any, positions: Any,
-                     velocities: Any = None, accelerations: Any = None, *,
+def check_trajectory(joint_names: Sequence[str], times: npt.ArrayLike, positions: Iterable[npt.ArrayLike],
+                     velocities: Iterable[npt.ArrayLike] | None = None,
+                     accelerations: Iterable[npt.ArrayLike] | None = None, *,
                      require_rest_at_end: bool = True) -> None:
     """Raise if JTC would reject the trajectory (arguments as :func:`trajectory_problems`).
 

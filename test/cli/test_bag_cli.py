@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import re
-from types import SimpleNamespace as NS
+from types import SimpleNamespace as Msg
 
 import numpy as np
 import pytest
@@ -57,7 +57,7 @@ def test_cli_plot_without_trajectories(tmp_path, ts, capsys):
 
 def test_pair_trajectories_matches_latest_earlier_input():
     def rec(topic, stamp):
-        return NS(topic=topic, stamp_ns=stamp)
+        return Msg(topic=topic, stamp_ns=stamp)
     ins = [rec(IN, 10), rec(IN, 20), rec(IN, 30)]  # the one at 20 was rejected (no output)
     outs = [rec(OUT, 15), rec(OUT, 35)]
     pairs = bag_cli.pair_trajectories(ins, outs)

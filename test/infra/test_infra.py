@@ -43,7 +43,7 @@ HOST_PROC_NET_DEV = textwrap.dedent("""\
         lo:  123456     789    0    0    0     0          0         0   123456     789    0    0    0     0       0          0
       eth0: 9876543   12345    0    0    0     0          0         0  1234567    2345    0    0    0     0       0          0
       ifb0:       0       0    0    0    0     0          0         0        0       0    0    0    0     0       0          0
-    """)
+    """)  # noqa: E501 a verbatim /proc/net/dev sample
 
 
 def _run(argv: list[str], timeout: float = 120, **kwargs) -> subprocess.CompletedProcess:

@@ -139,7 +139,7 @@ def test_wait_until_fails_loudly_and_fast_on_dead_process(tmp_path: Path) -> Non
 
 
 def test_popen_node_missing_console_script_is_clear(tmp_path: Path) -> None:
-    with pytest.raises(ToolError, match='console script .*no_such_node not found'):
+    with pytest.raises(ToolError, match=r'console script .*no_such_node not found'):
         popen_node('no_such_node', log_dir=tmp_path)
 
 

@@ -1,7 +1,7 @@
 """CDR serialisation of message-like objects (io.bags.cdr)."""
 from __future__ import annotations
 
-from types import SimpleNamespace as NS
+from types import SimpleNamespace as Msg
 
 import numpy as np
 import pytest
@@ -34,7 +34,7 @@ def test_cdr_errors_are_bag_errors(ts):
     with pytest.raises(BagError, match='unknown message type'):
         to_cdr(joint_state(0), 'nope_msgs/msg/Nope', ts)
     with pytest.raises(BagError, match='cannot serialise'):
-        to_cdr(NS(header=None), JOINT_STATE, ts)
+        to_cdr(Msg(header=None), JOINT_STATE, ts)
     data = to_cdr(joint_state(0), JOINT_STATE, ts)
     with pytest.raises(BagError, match='invalid sensor_msgs/msg/JointState CDR'):
         from_cdr(data + b'\0' * 16, JOINT_STATE, ts)

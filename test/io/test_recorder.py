@@ -1,7 +1,7 @@
 """Recording (io.bags.recorder and its flushable storages): round trip, metadata, errors, paths."""
 from __future__ import annotations
 
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 
 import numpy as np
 import pytest
@@ -129,7 +129,7 @@ def test_empty_directory_is_used_and_exception_still_closes(tmp_path, ts):
 
 
 def test_new_bag_path(tmp_path):
-    now = datetime(2026, 1, 2, 3, 4, 5, tzinfo=timezone.utc)
+    now = datetime(2026, 1, 2, 3, 4, 5, tzinfo=UTC)
     assert new_bag_path(tmp_path / 'new', now=now) == tmp_path / 'new'
     (tmp_path / 'empty').mkdir()
     assert new_bag_path(tmp_path / 'empty', now=now) == tmp_path / 'empty'

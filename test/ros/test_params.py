@@ -7,9 +7,9 @@ import pytest
 
 pytest.importorskip('rclpy')
 
-from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.parameter import Parameter
 
-from geodesic_planner.ros import params  # noqa: E402
+from geodesic_planner.ros import params
 
 
 def test_both_nodes_declare_from_one_table() -> None:

@@ -7,6 +7,7 @@ an event and a deadline.
 """
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import os
@@ -23,26 +24,26 @@ import yaml
 
 pytest.importorskip('rclpy')
 
-from geometry_msgs.msg import PoseStamped  # noqa: E402
-from nav_msgs.srv import GetPlan  # noqa: E402
-from numpy.testing import assert_allclose  # noqa: E402
-from rcl_interfaces.msg import Log  # noqa: E402
-from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
-from rcl_interfaces.srv import (DescribeParameters, GetParameters, SetParameters,  # noqa: E402
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.srv import GetPlan
+from numpy.testing import assert_allclose
+from rcl_interfaces.msg import Log
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.srv import (DescribeParameters, GetParameters, SetParameters,
                                  SetParametersAtomically)
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
-from trajectory_msgs.msg import JointTrajectory  # noqa: E402
-from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+from visualization_msgs.msg import Marker, MarkerArray
 
-import geodesic_planner  # noqa: E402
-from geodesic_planner import load_robot  # noqa: E402
-from geodesic_planner.ros import conversions as cv  # noqa: E402
-from geodesic_planner.core.transforms import make_transform, pose_error, so3_exp, so3_log  # noqa: E402
-from geodesic_planner.core.urdf import chain_from_urdf  # noqa: E402
+import geodesic_planner
+from geodesic_planner import load_robot
+from geodesic_planner.ros import conversions as cv
+from geodesic_planner.core.transforms import make_transform, pose_error, so3_exp, so3_log
+from geodesic_planner.core.urdf import chain_from_urdf
 
-from .launch import (Collector, RclpyRuntime, call_service, popen_node, wait_for_service,  # noqa: E402
+from .launch import (Collector, RclpyRuntime, call_service, popen_node, wait_for_service,
                      wait_for_subscribers, wait_until, warm_up_client)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
@@ -79,10 +80,8 @@ def diagnose(proc: Any) -> str:
     if proc.alive():
         before = len(proc.log_text())
         os.kill(proc.pid, signal.SIGUSR1)
-        try:
+        with contextlib.suppress(AssertionError):
             wait_until(lambda: 'Thread 0x' in proc.log_text()[before:], 5.0, what='stack dump')
-        except AssertionError:
-            pass
         text += f'--- {proc.describe()} stacks:\n{proc.log_text()[before:]}\n'
     with tempfile.TemporaryFile('w+') as f:
         faulthandler.dump_traceback(f, all_threads=True)
@@ -234,7 +233,7 @@ def fk_3r(q: np.ndarray) -> np.ndarray:
 
 
 def check_controller_contract(msg: JointTrajectory, names: list[str]) -> cv.TrajectoryArrays:
-    """What joint_trajectory_controller validates, plus item 4 of issue 4."""
+    """What joint_trajectory_controller validates, plus a zero stamp, all fields per point and rest at both ends."""
     assert cv.validate_joint_trajectory(msg) == []
     assert list(msg.joint_names) == names
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (0, 0)
@@ -808,7 +807,7 @@ def _pose_from_columns(p: tuple, n: tuple, o: tuple, a: tuple) -> PoseStamped:
 
 
 def test_rrpp_paper_poses_and_tolerance(start_node: Any, helper: Any) -> None:
-    # 4 joints, 6-D poses printed to 3 decimals: reachable only within a tolerance (NOTES.md 3)
+    # 4 joints, 6-D poses printed to 3 decimals: reachable only within a tolerance (docs/maths.md §3)
     robot = load_robot('rrpp')
     A = _pose_from_columns((-0.501, -0.901, -0.699), (0.100, -0.810, 0.577), (-0.102, 0.569, 0.816),
                            (-0.990, -0.141, -0.026))
@@ -837,7 +836,7 @@ def test_rrpp_paper_poses_and_tolerance(start_node: Any, helper: Any) -> None:
         assert len(msgs) == 1                              # the strict request published nothing
         arr = check_controller_contract(msgs[0], robot.joint_names)
         check_limits(arr, robot.max_velocity, robot.max_acceleration)
-        # paper Table 6 (signs restored in NOTES.md), printed to 3 decimals
+        # paper Table 6 (signs restored in docs/maths.md §5), printed to 3 decimals
         assert_allclose(arr.positions[0], [0.123, -1.539, 0.276, -0.640], atol=2e-3)
         assert_allclose(arr.positions[-1], [0.129, -1.629, 0.239, -0.643], atol=2e-3)
         dp, dr = pose_error(robot.fk(arr.positions[-1]), cv.pose_to_matrix(B.pose))

@@ -18,20 +18,20 @@ import yaml
 
 pytest.importorskip('rclpy')
 
-from numpy.testing import assert_allclose, assert_array_equal  # noqa: E402
-from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
-from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
-from rosbags.highlevel import AnyReader  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
-from trajectory_msgs.msg import JointTrajectory  # noqa: E402
+from numpy.testing import assert_allclose, assert_array_equal
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.srv import GetParameters, SetParameters
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
+from rosbags.highlevel import AnyReader
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
 
-from geodesic_planner.io.bags import JOINT_TRAJECTORY, bag_info, read_trajectories, to_cdr  # noqa: E402
-from geodesic_planner.ros import conversions as cv  # noqa: E402
+from geodesic_planner.io.bags import JOINT_TRAJECTORY, bag_info, read_trajectories, to_cdr
+from geodesic_planner.ros import conversions as cv
 
-from .launch import (Collector, call_service, deliver, wait_discovered, wait_for_service,  # noqa: E402
+from .launch import (Collector, call_service, deliver, wait_discovered, wait_for_service,
                      wait_for_subscribers, wait_until)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
@@ -70,7 +70,8 @@ def known_trajectory(q0: np.ndarray = Q0, q1: np.ndarray = Q1) -> JointTrajector
     return cv.arrays_to_joint_trajectory(NAMES, KNOTS, q, dq, ddq)
 
 
-def check_output(msg: JointTrajectory, f: float, dt: float, q0: np.ndarray = Q0, q1: np.ndarray = Q1) -> cv.TrajectoryArrays:
+def check_output(msg: JointTrajectory, f: float, dt: float, q0: np.ndarray = Q0,
+                 q1: np.ndarray = Q1) -> cv.TrajectoryArrays:
     """Points every dt (ns-exact), lasting T / f, on q(f t) with scaled derivatives, at rest at the end."""
     assert cv.validate_joint_trajectory(msg) == []
     assert list(msg.joint_names) == NAMES
@@ -352,7 +353,8 @@ def test_to_cdr_exact_for_rclpy_messages() -> None:
     fix.position_covariance[3] = 2.0
     for m, t in ((Image(height=2, width=3, encoding='rgb8', step=9, data=bytes(range(18))), 'sensor_msgs/msg/Image'),
                  (fix, 'sensor_msgs/msg/NavSatFix'), (Byte(data=b'\x07'), 'std_msgs/msg/Byte'),
-                 (Char(data=65), 'std_msgs/msg/Char'), (UInt8MultiArray(data=[1, 2, 3]), 'std_msgs/msg/UInt8MultiArray'),
+                 (Char(data=65), 'std_msgs/msg/Char'),
+                 (UInt8MultiArray(data=[1, 2, 3]), 'std_msgs/msg/UInt8MultiArray'),
                  (JointState(name=['a'], position=[1.0]), 'sensor_msgs/msg/JointState')):
         assert deserialize_message(to_cdr(m, t), type(m)) == m, t
 

@@ -1,4 +1,4 @@
-"""Reliability of the two nodes together, started as a user starts them (issue 7, "Done when").
+"""Reliability of the two nodes together, started as a user starts them.
 
 * 4 clients (each its own rclpy context, node and executor thread: four DDS participants, as
   four user nodes would be) x N plan requests, half of them hostile
@@ -21,6 +21,7 @@ docs/testing.md). N = 5 by default, 25 with ``--run-slow``.
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import re
 import signal
@@ -37,18 +38,18 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 pytest.importorskip('rclpy')
 
-from geometry_msgs.msg import PoseStamped  # noqa: E402
-from nav_msgs.srv import GetPlan  # noqa: E402
-from rcl_interfaces.srv import SetParameters  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
-from trajectory_msgs.msg import JointTrajectory  # noqa: E402
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
 
-from geodesic_planner.io.bags import bag_info, read_trajectories  # noqa: E402
-from geodesic_planner.ros import conversions as cv  # noqa: E402
+from geodesic_planner.io.bags import bag_info, read_trajectories
+from geodesic_planner.ros import conversions as cv
 
-from .launch import (Collector, NodeProcess, call_service, deliver, wait_discovered,  # noqa: E402
+from .launch import (Collector, NodeProcess, call_service, deliver, wait_discovered,
                      wait_for_subscribers, wait_until, warm_up_client)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(600)]
@@ -170,10 +171,8 @@ class OwnContextClient:
     def _spin(self) -> None:
         from rclpy.executors import ExternalShutdownException
 
-        try:
+        with contextlib.suppress(ExternalShutdownException):
             self.executor.spin()
-        except ExternalShutdownException:
-            pass
 
     def ready(self, watch: list[NodeProcess]) -> int:
         return warm_up(self.client, watch)
@@ -284,7 +283,8 @@ def run_scenario(nodes: dict[str, Any], ros_node: Any, per_client: int, *, good_
                             (planner_params, {'velocity_scaling': 2.0}, 'velocity_scaling: must be in (0, 1]'),
                             (planner_params, {'max_velocity': [1.0, 2.0]}, 'max_velocity: 2 values'),
                             (processor_params, {'sample_period': -0.01}, 'sample_period: must be finite and > 0'),
-                            (processor_params, {'velocity_scaling': float('inf')}, 'velocity_scaling: must be in (0, 1]')):
+                            (processor_params, {'velocity_scaling': float('inf')},
+                             'velocity_scaling: must be in (0, 1]')):
                         (res,) = set_params(client, watch, **values)
                         assert not res.successful and reason in res.reason, (values, res.reason)
                         with lock:

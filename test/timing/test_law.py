@@ -31,7 +31,7 @@ class ConstantPathSpeed:
         _, q1 = path.evaluate(s, order=1)
         t_min = float(np.max(np.abs(q1) / limits.max_velocity))
         T = t_min if duration is None else duration
-        if T < t_min:
+        if t_min > T:
             raise LimitError(f'duration {T} s is shorter than the minimum {t_min} s')
         return Trajectory(path=path, joint_names=limits.joint_names, duration=T,
                           max_velocity=limits.max_velocity, max_acceleration=limits.max_acceleration,

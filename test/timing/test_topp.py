@@ -26,7 +26,8 @@ def reference_topp(ps, vmax, amax):
         ra = [float(aR[k, i]) for i in range(dof)] + [float(aL[k + 1, i] + 2.0 * h * bL[k + 1, i]) for i in range(dof)]
         rb = [float(bR[k, i]) for i in range(dof)] + [float(bL[k + 1, i]) for i in range(dof)]
         rows.append((h, ra, rb))
-    tiny = 1e-12 * max(max(abs(v) for _, ra, _ in rows for v in ra), 1e-300)
+    peak = max(abs(v) for _, ra, _ in rows for v in ra)
+    tiny = 1e-12 * max(peak, 1e-300)
     rl = [float(v) for v in amax] * 2
     static, lines, upper = [], [], []
     for k, (h, ra, rb) in enumerate(rows):

@@ -69,7 +69,7 @@ def qos_profile(
 def _qos_from_dict(item: Mapping[str, Any]) -> Qos:
     """rosbags Qos from one entry of rosbag2 ``offered_qos_profiles`` (v8 ints or v9 names)."""
 
-    def enum(cls: Any, key: str) -> Any:  # noqa: ANN401
+    def enum(cls: Any, key: str) -> Any:  # noqa: ANN401 any rosbags Qos enum class
         value = item.get(key, 0)
         try:
             return cls(value) if isinstance(value, int) else cls[str(value).upper()]
@@ -109,14 +109,14 @@ _NUMPY_TYPES = {
 }
 
 
-def _to_rosbags(obj: Any, msgtype: str, typestore: Typestore) -> object:  # noqa: ANN401
+def _to_rosbags(obj: Any, msgtype: str, typestore: Typestore) -> object:  # noqa: ANN401 duck-typed message objects
     """Convert an object with the message's attributes (e.g. an rclpy message) to rosbags'."""
     _, fields = typestore.fielddefs[msgtype]
     kwargs: dict[str, Any] = {}
-    for name, (ntype, detail) in fields:
+    for name, desc in fields:
         value = getattr(obj, name)
-        if ntype == Nodetype.BASE:
-            base = detail[0]
+        if desc[0] == Nodetype.BASE:
+            base = desc[1][0]
             if base in ('string', 'wstring'):
                 kwargs[name] = str(value)
             elif base in _NUMPY_TYPES:
@@ -125,22 +125,22 @@ def _to_rosbags(obj: Any, msgtype: str, typestore: Typestore) -> object:  # noqa
                 kwargs[name] = _NUMPY_TYPES[base](value).item()
             else:
                 kwargs[name] = value
-        elif ntype == Nodetype.NAME:
-            kwargs[name] = _to_rosbags(value, detail, typestore)
+        elif desc[0] == Nodetype.NAME:
+            kwargs[name] = _to_rosbags(value, desc[1], typestore)
         else:  # ARRAY or SEQUENCE
-            (sub_type, sub_detail), _ = detail
-            if sub_type == Nodetype.BASE and sub_detail[0] in _NUMPY_TYPES:
-                dtype = _NUMPY_TYPES[sub_detail[0]]
+            sub_desc, _ = desc[1]
+            if sub_desc[0] == Nodetype.BASE and sub_desc[1][0] in _NUMPY_TYPES:
+                dtype = _NUMPY_TYPES[sub_desc[1][0]]
                 if isinstance(value, (bytes, bytearray)):
                     kwargs[name] = np.frombuffer(bytes(value), dtype=np.uint8).astype(dtype)
                 elif len(value) and isinstance(value[0], bytes):  # rclpy byte[]: list of bytes
                     kwargs[name] = np.array([ord(v) for v in value], dtype=dtype)
                 else:  # array.array, list, numpy: one buffer copy
                     kwargs[name] = np.array(value, dtype=dtype)
-            elif sub_type == Nodetype.BASE:
+            elif sub_desc[0] == Nodetype.BASE:
                 kwargs[name] = [str(v) for v in value]
             else:
-                kwargs[name] = [_to_rosbags(v, sub_detail, typestore) for v in value]
+                kwargs[name] = [_to_rosbags(v, sub_desc[1], typestore) for v in value]
     return typestore.types[msgtype](**kwargs)
 
 

@@ -89,7 +89,7 @@ def _rows(points: list[Any], name: str, dof: int) -> tuple[list[list[float]], np
     return rows, out
 
 
-def trajectory_record(topic: str, stamp_ns: int, msg: Any) -> TrajectoryRecord:  # noqa: ANN401
+def trajectory_record(topic: str, stamp_ns: int, msg: Any) -> TrajectoryRecord:  # noqa: ANN401 duck-typed rosbags or rclpy message
     """Arrays and validity of one decoded JointTrajectory (rosbags or rclpy message object).
 
     Args:

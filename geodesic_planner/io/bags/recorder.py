@@ -18,7 +18,7 @@ import sqlite3
 import threading
 import time
 from collections.abc import Mapping
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -63,7 +63,7 @@ def new_bag_path(path: str | os.PathLike[str], *, prefix: str = 'bag', now: date
         raise BagError(msg)
     if not any(base.iterdir()):
         return base
-    stamp = (now or datetime.now(timezone.utc)).strftime('%Y%m%dT%H%M%SZ')
+    stamp = (now or datetime.now(UTC)).strftime('%Y%m%dT%H%M%SZ')
     candidate = base.parent / f'{base.name}_{stamp}' if _looks_like_bag(base) else base / f'{prefix}_{stamp}'
     unique, k = candidate, 2
     while unique.exists():
@@ -262,7 +262,8 @@ class BagRecorder:
             writer = self._require_open()
             conn = self._connections.get(topic)
             if conn is None:
-                msg = f'topic {topic} is not recorded in {self._path} (recorded: {", ".join(self._connections) or "none"})'
+                recorded = ', '.join(self._connections) or 'none'
+                msg = f'topic {topic} is not recorded in {self._path} (recorded: {recorded})'
                 raise BagError(msg)
             stamp = int(stamp_ns)
             if stamp < 0:

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from io import BytesIO
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, BinaryIO
+from typing import IO, TYPE_CHECKING, Any, BinaryIO, cast
 
 import lz4.frame
 import zstandard
@@ -88,6 +88,15 @@ class _ExactReader:
         return data
 
 
+def _exact_reader(stream: BinaryIO) -> IO[bytes]:
+    """``stream`` behind an :class:`_ExactReader`, typed as the stream StreamReader accepts.
+
+    StreamReader only calls ``read(n)``; the reader is deliberately not a RawIOBase, which
+    StreamReader would wrap in a BufferedReader (whose reads may return fewer bytes).
+    """
+    return cast('IO[bytes]', _ExactReader(stream))
+
+
 def _decompress(chunk: Chunk) -> bytes | None:
     """Uncompressed records of a chunk; None when it is corrupt or its compression unknown."""
     try:
@@ -130,7 +139,7 @@ def _scan_records(records: Iterator[McapRecord], found: _Found, *, nested: bool)
                 if inner is None:
                     found.skipped += 1
                     continue
-                reader = StreamReader(_ExactReader(BytesIO(inner)), skip_magic=True,
+                reader = StreamReader(_exact_reader(BytesIO(inner)), skip_magic=True,
                                       record_size_limit=len(inner))
                 _scan_records(_until_end(reader.records), found, nested=True)
             elif isinstance(record, (Footer, DataEnd)) and not nested:
@@ -162,7 +171,7 @@ def _scan_mcap(path: Path) -> tuple[dict[int, _Recovered], list[tuple[int, int, 
         if fh.read(8) != _MCAP_MAGIC:
             msg = f'not an MCAP file: {path}'
             raise BagError(msg)
-        reader = StreamReader(_ExactReader(fh), skip_magic=True, emit_chunks=True,
+        reader = StreamReader(_exact_reader(fh), skip_magic=True, emit_chunks=True,
                               record_size_limit=path.stat().st_size)
         _scan_records(reader.records, found, nested=False)
     return found.channels, found.messages, found.skipped
