@@ -63,13 +63,13 @@ class JointLimits:
         return np.array([table.get(name, math.nan) for name in joint_names], dtype=float)
 
 
-def _flag(value: Any, where: str) -> bool:
+def _flag(value: object, where: str) -> bool:
     if isinstance(value, bool):
         return value
     raise RequestError(f'{where}: expected true or false, got {value!r}')
 
 
-def _positive(value: Any, where: str) -> float:
+def _positive(value: object, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise RequestError(f'{where}: expected a number, got {value!r}')
     x = float(value)
@@ -87,7 +87,7 @@ def _scaling(data: Mapping[str, Any], key: str) -> float:
     return x
 
 
-def parse_joint_limits(data: Any) -> JointLimits:
+def parse_joint_limits(data: object) -> JointLimits:
     """Limits from the parsed YAML document (see the module docstring for the format).
 
     Raises:
@@ -161,4 +161,4 @@ def apply_joint_limits(robot: Chain, limits: JointLimits) -> tuple[Chain, list[s
     max_velocity = np.where(np.isnan(vel), robot.max_velocity, np.minimum(vel, robot.max_velocity))
     acc = limits.per_joint('acceleration', names)
     max_acceleration = np.where(np.isnan(acc), robot.max_acceleration, acc)
-    return robot.with_limits(max_velocity=max_velocity, max_acceleration=max_acceleration), notes
+    return robot.with_limits(max_velocity=max_velocity.tolist(), max_acceleration=max_acceleration.tolist()), notes

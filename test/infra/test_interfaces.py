@@ -35,7 +35,7 @@ def test_built_package_imports_with_no_ros_environment() -> None:
             'print(json.dumps({"codes": {k: getattr(PlanErrorCode, k) for k in %r},'
             ' "request": sorted(req.get_fields_and_field_types()),'
             ' "response": sorted(res.get_fields_and_field_types()),'
-            ' "execute": req.execute, "code": res.error_code.val}))\n' % sorted(CODES))
+            ' "execute": req.execute, "code": res.error_code.val}))\n').replace('%r', repr(sorted(CODES)))
     env = {'PATH': '/usr/bin:/bin', 'HOME': os.environ.get('HOME', '/tmp')}
     result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120, env=env)
     assert result.returncode == 0, result.stderr[-3000:]
