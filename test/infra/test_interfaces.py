@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+from tools.process import popen_node
+
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / 'geodesic_planner_interfaces'
 
@@ -68,7 +70,7 @@ def test_service_type_is_served_and_called_across_processes(tmp_path: Path) -> N
         '    rclpy.spin(node)\n'
         'except (KeyboardInterrupt, ExternalShutdownException):\n'
         '    pass\n')
-    proc = subprocess.Popen([sys.executable, str(server)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    proc = popen_node('iface_server', name='iface_server', argv=[sys.executable, str(server)], log_dir=tmp_path)
     try:
         code = ('import rclpy\n'
                 'from geometry_msgs.msg import PoseStamped\n'
@@ -87,5 +89,4 @@ def test_service_type_is_served_and_called_across_processes(tmp_path: Path) -> N
         assert result.returncode == 0, result.stderr[-3000:]
         assert result.stdout.strip().splitlines()[-1] == '-102 execute=True vias=2'
     finally:
-        proc.terminate()
-        proc.wait(timeout=30)
+        proc.stop(timeout=10.0)   # SIGINT, then SIGTERM, then SIGKILL: the reply is what is tested
