@@ -309,16 +309,7 @@ def wait_writer_matched(process: NodeProcess, topic: str, n: int = 1,
     Raises:
         ToolError: a step timed out or a watched process died.
     """
-    runtime = _runtime(runtime)
-    watch = [process, *watch]
-    wait_until(lambda: runtime.node.count_subscribers(topic) >= n, timeout,
-               what=f'{n} subscription(s) on {topic} in the graph', watch=watch)
-    for nd in runtime.executor.get_nodes():
-        for sub in nd.subscriptions:
-            if sub.topic_name == topic:
-                wait_until(lambda s=sub: s.get_publisher_count() >= 1, timeout,
-                           what=f'our subscription on {topic} to match a publisher', watch=watch)
-    _barrier(runtime, topic, 'publishers', timeout, watch)
+    _wait_matched(_runtime(runtime), topic, n, timeout, [process, *watch], readers_side=True)
 
 
 def wait_reader_matched(process: NodeProcess, topic: str, n: int = 1,
@@ -335,16 +326,22 @@ def wait_reader_matched(process: NodeProcess, topic: str, n: int = 1,
     Raises:
         ToolError: a step timed out or a watched process died.
     """
-    runtime = _runtime(runtime)
-    watch = [process, *watch]
-    wait_until(lambda: runtime.node.count_publishers(topic) >= n, timeout,
-               what=f'{n} publisher(s) on {topic} in the graph', watch=watch)
+    _wait_matched(_runtime(runtime), topic, n, timeout, [process, *watch], readers_side=False)
+
+
+def _wait_matched(runtime: RclpyRuntime, topic: str, n: int, timeout: float, watch: list[NodeProcess], *,
+                  readers_side: bool) -> None:
+    """The steps of wait_writer_matched (readers_side) and wait_reader_matched (the mirror)."""
+    ours, theirs = ('subscription', 'publisher') if readers_side else ('publisher', 'subscription')
+    count = runtime.node.count_subscribers if readers_side else runtime.node.count_publishers
+    wait_until(lambda: count(topic) >= n, timeout, what=f'{n} {ours}(s) on {topic} in the graph', watch=watch)
     for nd in runtime.executor.get_nodes():
-        for pub in nd.publishers:
-            if pub.topic_name == topic:
-                wait_until(lambda p=pub: p.get_subscription_count() >= 1, timeout,
-                           what=f'our publisher on {topic} to match a subscription', watch=watch)
-    _barrier(runtime, topic, 'subscriptions', timeout, watch)
+        for entity in (nd.subscriptions if readers_side else nd.publishers):
+            if entity.topic_name == topic:
+                matched = entity.get_publisher_count if readers_side else entity.get_subscription_count
+                wait_until(lambda m=matched: m() >= 1, timeout,
+                           what=f'our {ours} on {topic} to match a {theirs}', watch=watch)
+    _barrier(runtime, topic, 'publishers' if readers_side else 'subscriptions', timeout, watch)
 
 
 def wait_discovered(node: Node, target: str, timeout: float = DEFAULT_TIMEOUT, *,

@@ -9,12 +9,7 @@ from numpy.testing import assert_array_equal
 
 from bag_util import example, joint_state, trajectory
 from geodesic_planner.core.errors import BagError
-from geodesic_planner.io.bags import JOINT_STATE, JOINT_TRAJECTORY, from_cdr, make_typestore, to_cdr
-
-
-@pytest.fixture
-def ts():
-    return make_typestore()
+from geodesic_planner.io.bags import JOINT_STATE, JOINT_TRAJECTORY, from_cdr, to_cdr
 
 
 def test_to_cdr_matches_rosbags_serialisation(ts):

@@ -16,15 +16,9 @@ from geodesic_planner.io.bags import (
     JOINT_TRAJECTORY,
     BagRecorder,
     bag_info,
-    make_typestore,
     read_trajectories,
     to_cdr,
 )
-
-
-@pytest.fixture
-def ts():
-    return make_typestore()
 
 
 def test_invalid_trajectory_recorded_with_problems(tmp_path, ts):

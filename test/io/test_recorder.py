@@ -18,17 +18,11 @@ from geodesic_planner.io.bags import (
     STORAGES,
     BagRecorder,
     bag_info,
-    make_typestore,
     new_bag_path,
     qos_profile,
     read_trajectories,
     to_cdr,
 )
-
-
-@pytest.fixture
-def ts():
-    return make_typestore()
 
 
 @pytest.mark.parametrize('storage', STORAGES)

@@ -19,16 +19,10 @@ from geodesic_planner.io.bags import (
     STORAGES,
     BagRecorder,
     bag_info,
-    make_typestore,
     read_trajectories,
     repair,
     to_cdr,
 )
-
-
-@pytest.fixture
-def ts():
-    return make_typestore()
 
 
 @pytest.mark.parametrize('storage', STORAGES)
