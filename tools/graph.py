@@ -7,9 +7,9 @@ so ``tools`` stays importable without ROS.
 """
 from __future__ import annotations
 
-import contextlib
 import itertools
 import os
+import sys
 import threading
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -203,16 +203,34 @@ class RclpyRuntime:
         rclpy.init(context=self.context)
         self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
         self._names = itertools.count()
+        #: exceptions that came out of the executor (it kept spinning; see _spin)
+        self.spin_errors: list[BaseException] = []
         self.node = self.create_node(name)
         self._thread = threading.Thread(target=self._spin, name='rclpy-executor', daemon=True)
         self._thread.start()
         RclpyRuntime.current = self
 
     def _spin(self) -> None:
+        """Spin until shutdown, whatever comes out of the executor.
+
+        Tests destroy their clients and subscriptions while this thread spins; when the executor
+        was using one at that moment, rclpy raises out of ``spin()`` (``InvalidHandle``; ros2/rclpy
+        #1206, #1355), and so does a callback that raises. Ending the thread there would lose every
+        later reply and message of the session: record the error, say so, spin on.
+        """
         from rclpy.executors import ExternalShutdownException
 
-        with contextlib.suppress(ExternalShutdownException):
-            self.executor.spin()
+        while self.context.ok():
+            try:
+                self.executor.spin()
+                return
+            except ExternalShutdownException:
+                return
+            except Exception as err:  # noqa: BLE001 - the executor must outlive any one callback
+                if not self.context.ok():
+                    return
+                self.spin_errors.append(err)
+                sys.stderr.write(f'rclpy executor: {type(err).__name__}: {err} (spinning on)\n')
 
     def create_node(self, base: str = 'gp_test_node') -> Any:  # noqa: ANN401
         """A new helper node (unique name), added to the spinning executor."""

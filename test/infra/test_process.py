@@ -197,3 +197,33 @@ def test_real_node_serves_is_matched_and_exits_cleanly_on_sigint(tmp_path: Path)
     finally:
         proc.stop(timeout=2.0)
         runtime.shutdown()
+
+
+@pytest.mark.ros
+def test_helper_executor_survives_an_exception_out_of_spin() -> None:
+    """The session's executor thread keeps serving after an exception came out of ``spin()``
+    (a callback that raises here; InvalidHandle from a destroyed entity in real runs)."""
+    from std_msgs.msg import Int32
+
+    from tools.graph import Collector, RclpyRuntime, wait_for_subscribers
+
+    runtime = RclpyRuntime()
+    try:
+        node = runtime.node
+
+        def boom(msg: Int32) -> None:
+            raise RuntimeError(f'callback failed on {msg.data}')
+
+        node.create_subscription(Int32, '/gp_boom', boom, 10)
+        got = Collector(node, Int32, '/gp_after', 10)
+        boom_pub = node.create_publisher(Int32, '/gp_boom', 10)
+        after_pub = node.create_publisher(Int32, '/gp_after', 10)
+        wait_for_subscribers(boom_pub, 1, 30)
+        wait_for_subscribers(after_pub, 1, 30)
+        boom_pub.publish(Int32(data=1))
+        wait_until(lambda: runtime.spin_errors, 30, what='the exception out of spin()')
+        after_pub.publish(Int32(data=2))
+        assert got.wait_for(1, 30)[0].data == 2
+        assert 'callback failed on 1' in str(runtime.spin_errors[0])
+    finally:
+        runtime.shutdown()
