@@ -10,7 +10,6 @@ tells: ``input publishers matched``).
 from __future__ import annotations
 
 import threading
-from collections.abc import Mapping
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
@@ -23,7 +22,7 @@ OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.E
 class NodeStatus:
     """The node's named values, published on ``/diagnostics`` on change and every ``period`` s.
 
-    Thread-safe: callbacks and worker threads may call :meth:`set` and :meth:`add`.
+    Thread-safe: callbacks and worker threads may call :meth:`set`.
     """
 
     def __init__(self, node: Node, period: float = 1.0) -> None:
@@ -49,19 +48,6 @@ class NodeStatus:
                 self._message, changed = message, True
         if changed:
             self.publish()
-
-    def add(self, **increments: int) -> None:
-        """Add to integer counters (created at 0), then publish."""
-        with self._lock:
-            for key, step in increments.items():
-                k = key.replace('_', ' ')
-                self._values[k] = str(int(self._values.get(k, '0')) + step)
-        self.publish()
-
-    def values(self) -> Mapping[str, str]:
-        """A copy of the current values."""
-        with self._lock:
-            return dict(self._values)
 
     def publish(self) -> None:
         """Publish the current status now."""
