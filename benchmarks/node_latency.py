@@ -323,7 +323,7 @@ def breakdown(robot: str, n: int) -> dict[str, float]:
     stages: dict[str, list[float]] = {}
     for i, req in enumerate(reqs):
         t0 = time.perf_counter()
-        res = pn.compute_plan(config, req, None)
+        res = pn.compute_plan(config, pn.get_plan_request(config, req), None)
         total = (time.perf_counter() - t0) * 1e3
         if i >= 3:
             for k, v in {**res.stage_ms, 'total': total}.items():

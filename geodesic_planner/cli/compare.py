@@ -117,18 +117,9 @@ def summarize(profile: dict[str, np.ndarray]) -> dict[str, Any]:
 
 def line_errors(profile: dict[str, np.ndarray], T_a: np.ndarray, T_b: np.ndarray) -> dict[str, float]:
     """How far the tool path is from the straight line A->B (and from line + slerp at the same s)."""
-    from ..core.transforms import line_slerp, pose_error
+    from ..core.transforms import line_slerp, pose_error, segment_distance
     p = profile['p']
-    pa, pb = T_a[:3, 3], T_b[:3, 3]
-    ab = pb - pa
-    L = float(np.linalg.norm(ab))
-    rel = p - pa
-    if L > 0:
-        u = ab / L
-        t = np.clip(rel @ u, 0.0, L)
-        dist = np.linalg.norm(rel - t[:, None] * u, axis=1)
-    else:
-        dist = np.linalg.norm(rel, axis=1)
+    dist = segment_distance(p, T_a[:3, 3], T_b[:3, 3])
     ref = line_slerp(T_a, T_b, profile['s'])
     T = np.zeros((p.shape[0], 4, 4))
     T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = profile['R'], p, 1.0

@@ -5,6 +5,18 @@ a CLI catches one family and reports ``str(err)``, which always names the cause.
 """
 from __future__ import annotations
 
+#: Longest user-given string quoted in an error message, characters (a 1 MB frame_id must not be
+#: echoed into every log line and reply).
+QUOTE_LIMIT = 80
+
+
+def quoted(text: object, limit: int = QUOTE_LIMIT) -> str:
+    """``repr`` of a user-given string for a message, cut to ``limit`` characters with its length."""
+    s = str(text)
+    if len(s) <= limit:
+        return repr(s)
+    return f'{s[:limit]!r}... ({len(s)} characters)'
+
 
 class GeodesicPlannerError(Exception):
     """Root of all geodesic_planner errors."""
@@ -12,6 +24,14 @@ class GeodesicPlannerError(Exception):
 
 class RequestError(GeodesicPlannerError, ValueError):
     """A request is malformed: NaN/inf, wrong shape or joint count, bad quaternion, unknown name."""
+
+
+class FrameError(RequestError):
+    """A pose is given in a frame the planner cannot transform (only the robot's base frame is known)."""
+
+
+class StartStateError(RequestError):
+    """A plan's first point is not where the robot is (beyond the allowed start tolerance)."""
 
 
 class TrajectoryError(RequestError):
@@ -63,13 +83,17 @@ class BagError(GeodesicPlannerError):
 
 
 __all__ = [
+    'QUOTE_LIMIT',
     'BVPError',
     'BagError',
+    'FrameError',
     'GeodesicPlannerError',
     'IKError',
     'KinematicsError',
     'LimitError',
     'RequestError',
     'SingularMetricError',
+    'StartStateError',
     'TrajectoryError',
+    'quoted',
 ]

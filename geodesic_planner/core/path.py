@@ -13,6 +13,7 @@ import numpy.typing as npt
 
 from .errors import RequestError
 from .kinematics import Chain
+from .transforms import segment_distance
 
 if TYPE_CHECKING:
     from ..timing.trajectory import Trajectory
@@ -80,6 +81,12 @@ class JointPath(ABC):
     def ee_poses(self, s: np.ndarray) -> np.ndarray:
         """Tool poses (len(s), 4, 4) along the path, base frame."""
         return self.robot.fk(self.evaluate(check_s(s))[0])
+
+    def line_deviation(self, samples: int = 201) -> float:
+        """Largest distance (m) of the tool position from the straight segment between the path's
+        end positions, on ``samples`` uniform values of s (piecewise paths: per piece)."""
+        T = self.ee_poses(np.linspace(0.0, 1.0, int(samples)))
+        return float(segment_distance(T[:, :3, 3], T[0, :3, 3], T[-1, :3, 3]).max())
 
     def timed(self, max_velocity: npt.ArrayLike | None = None, max_acceleration: npt.ArrayLike | None = None,
               duration: float | None = None) -> Trajectory:

@@ -79,3 +79,7 @@ class PiecewiseGeodesicPath(JointPath):
             for k, arr in enumerate(self.pieces[i].evaluate(u, order)):
                 out[k][sel] = arr / w**k
         return tuple(out)
+
+    def line_deviation(self, samples: int = 201) -> float:
+        """Largest distance (m) of the tool position from each piece's straight segment."""
+        return max(piece.line_deviation(samples) for piece in self.pieces)

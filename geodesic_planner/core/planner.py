@@ -155,9 +155,12 @@ class GeodesicPlanner:
 
     def resolve_ends(self, start: np.ndarray | None, goal: np.ndarray | None,
                      start_joints: object = None, goal_joints: object = None,
-                     tolerance: float | None = None,
+                     tolerance: float | None = None, start_seed: object = None,
                      ) -> tuple[np.ndarray, np.ndarray, IKSolution | None, IKSolution | None]:
         """Joint boundary conditions from poses or joints (joints win when both are given).
+
+        ``start_seed`` (dof,) seeds the start pose's IK (e.g. the robot's current joint state),
+        so that the start is solved on the robot's own branch; None: the planner's default seeds.
 
         Raises:
             RequestError: missing/invalid end; IKError: unreachable pose.
@@ -175,9 +178,10 @@ class GeodesicPlanner:
             T_b = check_transform(goal, 'goal pose')
         else:
             raise RequestError('goal: give a goal pose or goal_joints')
+        seed = None if start_seed is None else self.robot.check_joints(start_seed, 'start_seed')
         ik_a = ik_b = None
         if start_joints is None:
-            ik_a = self._ik(T_a, None, tolerance)
+            ik_a = self._ik(T_a, seed, tolerance)
             q_a = ik_a.q
         if goal_joints is None:
             if ik_a is not None and np.abs(T_b - T_a).max() <= SAME_POSE:
@@ -253,20 +257,23 @@ class GeodesicPlanner:
 
     # ------------------------------------------------------------------ plan
     def plan(self, start: np.ndarray | None, goal: np.ndarray | None, start_joints: object = None,
-             goal_joints: object = None, *, tolerance: float | None = None) -> GeodesicPath:
+             goal_joints: object = None, *, tolerance: float | None = None,
+             start_seed: object = None) -> GeodesicPath:
         """Geodesic from start to goal.
 
         Args:
             start, goal: 4x4 base->tool transforms (m), or None when the joints are given.
             start_joints, goal_joints: (dof,) joint boundary conditions (override the poses).
             tolerance: allowed distance to the nearest reachable pose (default: planner's).
+            start_seed: (dof,) seed of the start pose's IK (e.g. the current joint state).
         Returns:
             GeodesicPath with ``solver`` diagnostics (time_ms covers IK, guess and solve).
         Raises:
             RequestError, IKError, SingularMetricError, BVPError (all GeodesicPlannerError).
         """
         t0 = time.perf_counter()
-        q_a, q_b, ik_a, ik_b = self.resolve_ends(start, goal, start_joints, goal_joints, tolerance)
+        q_a, q_b, ik_a, ik_b = self.resolve_ends(start, goal, start_joints, goal_joints, tolerance,
+                                                 start_seed)
         return self._solve(q_a, q_b, ik_a, ik_b, t0)
 
     def plan_joints(self, q_a: object, q_b: object) -> GeodesicPath:
@@ -387,12 +394,13 @@ class GeodesicPlanner:
         return s, q, v
 
     def plan_through(self, poses: Sequence[np.ndarray | None], start_joints: object = None, *,
-                     tolerance: float | None = None) -> PiecewiseGeodesicPath:
+                     tolerance: float | None = None, start_seed: object = None) -> PiecewiseGeodesicPath:
         """Piecewise geodesic through via points with the paper's trajectory scaling (eq. 10).
 
         Args:
             poses: [T0, T1, ..., TN] 4x4 transforms; T0 may be None when start_joints is given.
             start_joints: joints at T0 (then T0 is only informational).
+            start_seed: (dof,) seed of T0's IK (e.g. the current joint state).
         Returns:
             PiecewiseGeodesicPath with the same evaluate(s) contract over s ∈ [0, 1].
         Raises:
@@ -412,7 +420,8 @@ class GeodesicPlanner:
         else:
             if first is None:
                 raise RequestError('plan_through: give the first pose or start_joints')
-            ik_a = self._ik(first, None, tolerance)
+            seed = None if start_seed is None else self.robot.check_joints(start_seed, 'start_seed')
+            ik_a = self._ik(first, seed, tolerance)
             q_prev = ik_a.q
         pieces = []
         for i, T in enumerate(targets, start=1):

@@ -189,6 +189,20 @@ def line_slerp(T_a: np.ndarray, T_b: np.ndarray, s: np.ndarray,
     return out
 
 
+def segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (m) from points ``p`` (N, 3) to the segment from ``a`` to ``b`` (3,), shape (N,)."""
+    p = np.asarray(p, dtype=float).reshape(-1, 3)
+    a = np.asarray(a, dtype=float)
+    ab = np.asarray(b, dtype=float) - a
+    rel = p - a
+    length = float(np.linalg.norm(ab))
+    if length == 0.0:
+        return np.linalg.norm(rel, axis=1)
+    u = ab / length
+    t = np.clip(rel @ u, 0.0, length)
+    return np.linalg.norm(rel - t[:, None] * u, axis=1)
+
+
 def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Position distance (m) and rotation angle (rad) between transforms (..., 4, 4)."""
     dp = np.linalg.norm(T_a[..., :3, 3] - T_b[..., :3, 3], axis=-1)

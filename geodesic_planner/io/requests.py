@@ -50,16 +50,20 @@ class PlanRequest:
         """A planner for this request's robot and metric options."""
         return GeodesicPlanner(self.robot, **self.planner_options)
 
-    def plan(self, planner: GeodesicPlanner | None = None) -> GeodesicPath | PiecewiseGeodesicPath:
-        """Plan it: a geodesic, or a piecewise geodesic when via points are given."""
+    def plan(self, planner: GeodesicPlanner | None = None, *,
+             start_seed: np.ndarray | None = None) -> GeodesicPath | PiecewiseGeodesicPath:
+        """Plan it: a geodesic, or a piecewise geodesic when via points are given.
+
+        ``start_seed`` (dof,) seeds the start pose's IK (e.g. the robot's current joint state).
+        """
         planner = planner or self.planner()
         if self.via:
             if self.goal is None:
-                raise RequestError('via points need a goal pose')
+                raise RequestError('via points need a goal pose (goal_joints cannot end a via sequence)')
             return planner.plan_through([self.start, *self.via, self.goal], self.start_joints,
-                                        tolerance=self.tolerance)
+                                        tolerance=self.tolerance, start_seed=start_seed)
         return planner.plan(self.start, self.goal, self.start_joints, self.goal_joints,
-                            tolerance=self.tolerance)
+                            tolerance=self.tolerance, start_seed=start_seed)
 
 
 def parse_request(data: object, base_dir: str = '.') -> PlanRequest:

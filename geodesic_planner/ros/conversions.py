@@ -19,7 +19,7 @@ from std_msgs.msg import ColorRGBA, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ..core.errors import RequestError
+from ..core.errors import FrameError, RequestError, quoted
 from ..core.transforms import make_transform, matrix_to_quat, pose_to_transform, quat_to_matrix
 from ..timing.validate import trajectory_problems
 
@@ -160,12 +160,12 @@ def check_frame(frame_id: str, base_frame: str, what: str = 'pose') -> None:
     """Accept an empty frame_id (meaning the base frame) or exactly ``base_frame``.
 
     Raises:
-        RequestError: any other frame (no TF lookup is done).
+        FrameError: any other frame (no TF lookup is done).
     """
     if frame_id not in ('', base_frame):
-        raise RequestError(
-            f"{what}: frame_id '{frame_id}' is not the base frame '{base_frame}' "
-            f"(poses must be given in '{base_frame}' or with an empty frame_id)")
+        raise FrameError(
+            f"{what}: frame_id {quoted(frame_id)} is not the base frame '{base_frame}' "
+            f"(poses must be given in '{base_frame}' or with an empty frame_id; no TF lookup is done)")
 
 
 def pose_stamped_to_matrix(msg: PoseStamped, base_frame: str, what: str = 'pose') -> np.ndarray:
@@ -184,6 +184,20 @@ def is_current_state_pose(msg: PoseStamped) -> bool:
     """True for the "start from the current joint state" marker: empty frame_id, all-zero quaternion."""
     o = msg.pose.orientation
     return msg.header.frame_id == '' and o.x == 0.0 and o.y == 0.0 and o.z == 0.0 and o.w == 0.0
+
+
+def is_empty_pose(msg: PoseStamped) -> bool:
+    """True for a PoseStamped left unset in a PlanTrajectory request.
+
+    Unset means an empty frame_id and either an all-zero quaternion (the marker GetPlan uses too)
+    or the default-constructed pose (position 0, quaternion x = y = z = 0, w = 1): that pose would
+    put the tool at the base frame's origin, inside the robot, so it is read as "not given".
+    """
+    if is_current_state_pose(msg):
+        return True
+    p, o = msg.pose.position, msg.pose.orientation
+    return (msg.header.frame_id == '' and p.x == 0.0 and p.y == 0.0 and p.z == 0.0
+            and o.x == 0.0 and o.y == 0.0 and o.z == 0.0 and o.w == 1.0)
 
 
 def matrix_to_pose_stamped(T: np.ndarray, frame_id: str, stamp: Time | None = None) -> PoseStamped:
@@ -280,7 +294,15 @@ def path_markers(
 # --------------------------------------------------------------------------- joint states
 
 
-def joint_state_to_vector(msg: JointState, joint_names: Sequence[str]) -> np.ndarray:
+def _names(names: Sequence[str], limit: int = 10) -> str:
+    """A list of user-given names for a message: at most ``limit`` names, each cut short."""
+    shown = ', '.join(quoted(n, 40) for n in names[:limit])
+    more = f', ... ({len(names)} names)' if len(names) > limit else ''
+    return f'[{shown}{more}]'
+
+
+def joint_state_to_vector(msg: JointState, joint_names: Sequence[str],
+                          what: str = 'joint state') -> np.ndarray:
     """Joint positions of a sensor_msgs/JointState in the robot's order, validated.
 
     The message may list joints in any order and may contain joints the robot does not have
@@ -289,6 +311,7 @@ def joint_state_to_vector(msg: JointState, joint_names: Sequence[str]) -> np.nda
     Args:
         msg: joint state (name, position; velocity/effort empty or sized like name).
         joint_names: the robot's joint names, length dof.
+        what: how messages name the joint state (e.g. ``start_joints``).
     Returns:
         Positions, shape (dof,), rad or m.
     Raises:
@@ -298,25 +321,25 @@ def joint_state_to_vector(msg: JointState, joint_names: Sequence[str]) -> np.nda
     names = list(msg.name)
     n = len(names)
     if len(msg.position) != n:
-        raise RequestError(f'joint state: {n} names but {len(msg.position)} positions')
+        raise RequestError(f'{what}: {n} names but {len(msg.position)} positions')
     for field in ('velocity', 'effort'):
         m = len(getattr(msg, field))
         if m not in (0, n):
-            raise RequestError(f'joint state: {n} names but {m} {field} values (expected 0 or {n})')
+            raise RequestError(f'{what}: {n} names but {m} {field} values (expected 0 or {n})')
     index = {name: i for i, name in enumerate(names)}
     if len(index) != n:
         dups = sorted({x for x in names if names.count(x) > 1})
-        raise RequestError(f'joint state: duplicate joint names {dups}')
+        raise RequestError(f'{what}: duplicate joint names {_names(dups)}')
     missing = [j for j in joint_names if j not in index]
     if missing:
         if len(missing) == len(joint_names):
             raise RequestError(
-                f'joint state: none of the robot joints {list(joint_names)} (got {names})')
-        raise RequestError(f'joint state: missing robot joints {missing} (got {names})')
+                f'{what}: none of the robot joints {list(joint_names)} (got {_names(names)})')
+        raise RequestError(f'{what}: missing robot joints {missing} (got {_names(names)})')
     q = np.array([msg.position[index[j]] for j in joint_names], dtype=float)
     bad = [j for j, v in zip(joint_names, q) if not np.isfinite(v)]
     if bad:
-        raise RequestError(f'joint state: non-finite position for joints {bad}')
+        raise RequestError(f'{what}: non-finite position for joints {bad}')
     return q
 
 

@@ -84,6 +84,15 @@ def positive(value: object) -> str | None:
     return None
 
 
+def non_negative(value: object) -> str | None:
+    """Finite and >= 0."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return f'must be a number, got {value!r}'
+    if not (math.isfinite(float(value)) and float(value) >= 0.0):
+        return f'must be finite and >= 0, got {value!r}'
+    return None
+
+
 def unit_interval(value: object) -> str | None:
     """In (0, 1]."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -148,9 +157,9 @@ def topic_list(value: object) -> str | None:
 _SPECS = (
     # planner: robot model and metric
     ParamSpec('robot', STRING, DEFAULT_ROBOT,
-              'Robot model: a preset name (planar_3r, rrpp, ur5e, panda) or a path to a .urdf file. '
-              'Ignored when robot_description is not empty.',
-              'non-empty unless robot_description is set'),
+              'Robot model: a preset name (planar_3r, rrpp, ur5e, panda) or a path to a .urdf file; '
+              'empty: the URDF published on /robot_description (std_msgs/String, transient local, '
+              'as robot_state_publisher publishes it). Ignored when robot_description is not empty.'),
     ParamSpec('robot_description', STRING, '',
               'URDF XML string (as robot_state_publisher publishes it); takes precedence over '
               'robot when not empty.'),
@@ -173,6 +182,22 @@ _SPECS = (
     ParamSpec('max_acceleration', DOUBLES, [],
               'Joint acceleration limits, rad/s^2 or m/s^2 (empty: robot defaults; one value: all '
               'joints).', 'empty, 1 or dof values, each finite and > 0', positive_array),
+    ParamSpec('joint_limits', STRING, '',
+              'Path to a MoveIt-style joint_limits.yaml (has_velocity_limits, max_velocity, '
+              'has_acceleration_limits, max_acceleration, has_jerk_limits, max_jerk per joint); it '
+              'may lower the model\'s velocity limits and sets acceleration limits; max_velocity '
+              'and max_acceleration, when given, override it. Empty: none.'),
+    ParamSpec('max_tool_speed', DOUBLE, 0.0,
+              'Largest linear speed of the tool frame origin, m/s (0: no limit).', 'finite, >= 0',
+              non_negative),
+    ParamSpec('max_tool_angular_speed', DOUBLE, 0.0,
+              'Largest angular speed of the tool, rad/s (0: no limit).', 'finite, >= 0',
+              non_negative),
+    ParamSpec('allowed_start_tolerance', DOUBLE, 0.01,
+              'Largest difference between a plan\'s first point and the current joint state, per '
+              'joint, rad (m for prismatic joints); a plan beyond it is refused with '
+              'START_STATE_MISMATCH (0: no check; no check either before a joint state arrives).',
+              'finite, >= 0', non_negative),
     # both nodes
     ParamSpec('velocity_scaling', DOUBLE, 1.0,
               'Time scaling factor f: durations / f, velocities * f, accelerations * f^2.',
@@ -206,8 +231,9 @@ SCHEMA: dict[str, ParamSpec] = {spec.name: spec for spec in _SPECS}
 
 PLANNER_PARAMETERS = ('robot', 'robot_description', 'base_link', 'tip_link', 'joint_names',
                       'metric', 'position_weight', 'orientation_weight', 'max_velocity',
-                      'max_acceleration', 'velocity_scaling', 'sample_period', 'frame_id',
-                      'plan_timeout')
+                      'max_acceleration', 'joint_limits', 'max_tool_speed',
+                      'max_tool_angular_speed', 'allowed_start_tolerance', 'velocity_scaling',
+                      'sample_period', 'frame_id', 'plan_timeout')
 PROCESSOR_PARAMETERS = ('input_topic', 'output_topic', 'sample_period', 'velocity_scaling',
                         'bag_path', 'storage', 'record_topics')
 

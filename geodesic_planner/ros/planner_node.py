@@ -66,10 +66,15 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import rclpy
+from builtin_interfaces.msg import Time
+from geodesic_planner_interfaces.msg import PlanErrorCode
+from geodesic_planner_interfaces.srv import PlanTrajectory
 from nav_msgs.msg import Path
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
@@ -81,19 +86,32 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Header
+from std_msgs.msg import Header, String
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from ..core.errors import GeodesicPlannerError, RequestError
+from ..io.requests import PlanRequest
 from . import conversions as cv
 from . import params, runtime
 from .diagnostics import NodeStatus
 from .matching import matched_logger, wait_for_matched_subscriptions
 from .params import PLANNER_PARAMETERS
-from .planning import ConfigError, PlanResult, build_config, compute_plan
+from .planning import (CODE_NAMES, ConfigError, PlannerConfig, PlanResult, PlanTimeoutError,
+                       build_config, compute_plan, error_code, get_plan_request,
+                       plan_trajectory_request)
 
 NODE_NAME = 'geodesic_planner'
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What one service request came to: PlanErrorCode value, reason, and the plan on success."""
+
+    code: int
+    message: str
+    result: PlanResult | None = None
+    published: bool = False
 
 
 def _joint_state_problem(message: str) -> str:
@@ -115,7 +133,9 @@ class GeodesicPlannerNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         params.declare(self, PLANNER_PARAMETERS)
         self._config_lock = threading.Lock()
-        self._config = build_config(self._parameter_values())
+        self._topic_description = ''
+        self._description_topic = self.resolve_topic_name('/robot_description')
+        self._config: PlannerConfig | None = self._build(self._parameter_values(), None)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._state: tuple[np.ndarray, tuple[str, ...]] | None = None
@@ -158,18 +178,32 @@ class GeodesicPlannerNode(Node):
         self._state_executor: Executor | None = None  # an EventsExecutor (a factory function)
         self._state_thread: threading.Thread | None = None
         self._states_stop = threading.Event()
-        self.plan_srv = self.create_service(
-            GetPlan, '~/plan', self._on_plan,
-            qos_profile=QoSProfile(depth=64, history=HistoryPolicy.KEEP_LAST,
-                                   reliability=ReliabilityPolicy.RELIABLE,
-                                   durability=DurabilityPolicy.VOLATILE),
-            callback_group=MutuallyExclusiveCallbackGroup())
+        # Both services share one MutuallyExclusiveCallbackGroup: plans run one at a time, in order.
+        service_qos = QoSProfile(depth=64, history=HistoryPolicy.KEEP_LAST,
+                                 reliability=ReliabilityPolicy.RELIABLE,
+                                 durability=DurabilityPolicy.VOLATILE)
+        plans = MutuallyExclusiveCallbackGroup()
+        self.plan_srv = self.create_service(GetPlan, '~/plan', self._on_plan,
+                                            qos_profile=service_qos, callback_group=plans)
+        self.plan_trajectory_srv = self.create_service(
+            PlanTrajectory, '~/plan_trajectory', self._on_plan_trajectory,
+            qos_profile=service_qos, callback_group=plans)
+        # The URDF as robot_state_publisher publishes it (used while the robot parameter is empty).
+        self.description_sub = self.create_subscription(
+            String, self._description_topic, self._on_robot_description,
+            QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                       reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        services = ', '.join(self.resolve_service_name(n) for n in ('~/plan_trajectory', '~/plan'))
         c = self._config
-        service = self.resolve_service_name('~/plan')
-        self.get_logger().info(
-            f"robot '{c.robot.name}' ({c.robot.dof} joints {list(c.joint_names)}), base frame "
-            f"'{c.frame_id}', metric {self.get_parameter('metric').value}, velocity_scaling "
-            f'{c.velocity_scaling:g}; serving {service}')
+        if c is None:
+            self.get_logger().info(f'robot parameter empty: waiting for the URDF on '
+                                   f'{self._description_topic}; serving {services}')
+        else:
+            self.get_logger().info(
+                f"robot '{c.robot.name}' ({c.robot.dof} joints {list(c.joint_names)}), base frame "
+                f"'{c.frame_id}', metric {self.get_parameter('metric').value}, velocity_scaling "
+                f'{c.velocity_scaling:g}; serving {services}')
 
     # ------------------------------------------------------------------ parameters
     def _parameter_values(self, changes: list[Parameter] | tuple[()] = ()) -> dict[str, Any]:
@@ -179,6 +213,56 @@ class GeodesicPlannerNode(Node):
                 values[p.name] = p.value
         return values
 
+    def _build(self, values: dict[str, Any], previous: PlannerConfig | None) -> PlannerConfig | None:
+        """A configuration for ``values``; None while the model must come from /robot_description
+        and has not arrived. Logs the configuration's notes (limits) when they change.
+
+        Raises:
+            ConfigError: an invalid value (the message names the parameter).
+        """
+        if not str(values['robot']).strip() and not str(values['robot_description']).strip():
+            if not self._topic_description:
+                for name in PLANNER_PARAMETERS:   # still check every value on its own
+                    reason = params.problem(name, values[name])
+                    if reason is not None:
+                        raise ConfigError(reason)
+                return None
+            values = dict(values, robot_description=self._topic_description)
+        config = build_config(values, previous)
+        if previous is None or config.notes != previous.notes:
+            for note in config.notes:
+                self.get_logger().warning(note)
+        return config
+
+    def _on_robot_description(self, msg: String) -> None:
+        text = msg.data
+        values = self._parameter_values()
+        if str(values['robot']).strip() or str(values['robot_description']).strip():
+            self._topic_description = text
+            self.get_logger().info(f'{self._description_topic}: URDF received ({len(text)} '
+                                   'characters), not used: the robot parameter is set')
+            return
+        with self._config_lock:
+            old = self._topic_description
+            self._topic_description = text
+            try:
+                self._config = self._build(values, self._config)
+            except ConfigError as err:
+                self._topic_description = old
+                self.get_logger().error(f'{self._description_topic}: URDF refused, keeping the '
+                                        f'current model: {err}')
+                return
+            except Exception as err:  # noqa: BLE001 - boundary: never let a callback crash the node
+                self._topic_description = old
+                self.get_logger().error(f'{self._description_topic}: internal error: '
+                                        f'{type(err).__name__}: {err}')
+                return
+        c = self._config
+        assert c is not None
+        self.get_logger().info(
+            f"robot '{c.robot.name}' from {self._description_topic} ({c.robot.dof} joints "
+            f"{list(c.joint_names)}), base frame '{c.frame_id}'")
+
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         ours = [p for p in changes if p.name in PLANNER_PARAMETERS]
         if not ours:
@@ -187,7 +271,7 @@ class GeodesicPlannerNode(Node):
         if reason is None:
             with self._config_lock:
                 try:
-                    self._config = build_config(self._parameter_values(ours), self._config)
+                    self._config = self._build(self._parameter_values(ours), self._config)
                 except ConfigError as err:
                     reason = str(err)
                 except Exception as err:  # noqa: BLE001 - boundary: never let a callback crash the node
@@ -239,7 +323,10 @@ class GeodesicPlannerNode(Node):
         super().destroy_node()
 
     def _on_joint_state(self, msg: JointState) -> None:
-        names = self._config.joint_names
+        config = self._config
+        if config is None:
+            return
+        names = config.joint_names
         try:
             q = cv.joint_state_to_vector(msg, names)
         except RequestError as err:
@@ -285,25 +372,86 @@ class GeodesicPlannerNode(Node):
             self.get_logger().info(f'waited {waited_ms:.1f} ms for {graph} subscriptions to match')
 
     def _on_plan(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
-        try:
-            return self._plan(request, response)
-        except Exception as err:  # noqa: BLE001 - boundary: answer and keep serving
-            self.get_logger().error(f'internal error: {type(err).__name__}: {err}')
-            return GetPlan.Response()
-
-    def _plan(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
-        """Plan in a worker thread (at most ``plan_timeout`` s), publish, fill ``response``."""
+        """nav_msgs/GetPlan (compatibility, unchanged): every successful plan is published; the
+        reply holds only the tool path (no poses on failure, the reason is logged); an explicit
+        start pose is solved from the home seed and not checked against the joint state."""
         t0 = time.perf_counter()
-        config = self._config
         stamp = self.get_clock().now().to_msg()
-        response.plan = Path(header=Header(frame_id=config.frame_id, stamp=stamp))
-        current_q = self.current_joints(config.joint_names)
+        config = self._config
+        response.plan = Path(header=Header(frame_id=config.frame_id if config else '', stamp=stamp))
+        outcome = self._serve(lambda c: (get_plan_request(c, request), None, None), True, stamp, t0,
+                              check_start=False)
+        if outcome.result is not None:
+            response.plan = outcome.result.path
+        return response
+
+    def _on_plan_trajectory(self, request: PlanTrajectory.Request,
+                            response: PlanTrajectory.Response) -> PlanTrajectory.Response:
+        """geodesic_planner_interfaces/PlanTrajectory: error code, reason, trajectory and tool
+        path in the reply; published only when ``execute`` is true."""
+        t0 = time.perf_counter()
+        stamp = self.get_clock().now().to_msg()
+        outcome = self._serve(lambda c: plan_trajectory_request(c, request), bool(request.execute),
+                              stamp, t0)
+        response.error_code = PlanErrorCode(val=outcome.code)
+        response.message = outcome.message
+        response.planning_time = time.perf_counter() - t0
+        result = outcome.result
+        if result is not None:
+            response.trajectory = result.trajectory
+            response.tool_path = result.path
+            response.solver_method = result.solver_method
+            response.path_error = result.path_error
+        return response
+
+    def _serve(self, parse: Callable[[PlannerConfig], tuple[PlanRequest, float | None, float | None]],
+               execute: bool, stamp: Time, t0: float, check_start: bool = True) -> Outcome:
+        """Parse, plan (bounded by ``plan_timeout``), publish if ``execute``; log the outcome.
+
+        ``check_start``: seed an explicit start's IK with the joint state and check the plan's
+        first point against it (PlanTrajectory); False keeps GetPlan's behaviour.
+        """
+        try:
+            config = self._config
+            if config is None:
+                raise ConfigError(f'no robot model yet: the robot parameter is empty and no URDF has '
+                                  f'arrived on {self._description_topic}')
+            request, fv, fa = parse(config)
+            current_q = self.current_joints(config.joint_names)
+            if not check_start and (request.start is not None or request.start_joints is not None):
+                current_q = None
+            outcome = self._plan(config, request, current_q, fv, fa, execute, stamp)
+        except GeodesicPlannerError as err:
+            outcome = Outcome(error_code(err), str(err))
+        except Exception as err:  # noqa: BLE001 - boundary: answer and keep serving
+            outcome = Outcome(PlanErrorCode.PLANNING_FAILED, f'internal error: {type(err).__name__}: {err}')
+        total_ms = (time.perf_counter() - t0) * 1e3
+        result = outcome.result
+        if result is None:
+            self.get_logger().error(f'plan failed ({CODE_NAMES.get(outcome.code, outcome.code)}, '
+                                    f'{total_ms:.1f} ms): {outcome.message}')
+            return outcome
+        self.marker_pub.publish(result.markers)
+        self.get_logger().info(
+            f'plan: {result.points} points, {result.duration:.2f} s, '
+            f'{"published" if outcome.published else "not published (execute: false)"}, solver '
+            f'{result.solver_method} ({result.solver_iterations} it, {result.mesh_size} nodes), '
+            f'{result.solver_ms:.1f} ms, path error {result.path_error:.2g} m (request '
+            f'{total_ms:.1f} ms: ' + ', '.join(f'{k} {v:.1f}' for k, v in result.stage_ms.items()) + ')')
+        return outcome
+
+    def _plan(self, config: PlannerConfig, request: PlanRequest, current_q: np.ndarray | None,
+              velocity_factor: float | None, acceleration_factor: float | None, execute: bool,
+              stamp: Time) -> Outcome:
+        """Plan in a worker thread (at most ``plan_timeout`` s) and publish if ``execute``."""
         box: dict[str, Any] = {}
         state = {'abandoned': False, 'published': False}
         done = threading.Event()
 
         def publish(msg: JointTrajectory) -> bool:
             # Runs in the worker; the lock makes "publish" and "abandon" mutually exclusive.
+            if not execute:
+                return True
             self._await_subscriptions()
             with self._publish_lock:
                 if state['abandoned']:
@@ -315,10 +463,12 @@ class GeodesicPlannerNode(Node):
         def work() -> None:
             try:
                 if not self._planner_lock.acquire(timeout=config.plan_timeout):
-                    raise RequestError('planner busy: an earlier request that timed out is '
-                                       'still computing')
+                    raise PlanTimeoutError('planner busy: an earlier request that timed out is '
+                                           'still computing')
                 try:
-                    box['result'] = compute_plan(config, request, current_q, stamp, publish)
+                    box['result'] = compute_plan(
+                        config, request, current_q, stamp, publish,
+                        velocity_factor=velocity_factor, acceleration_factor=acceleration_factor)
                 finally:
                     self._planner_lock.release()
             except BaseException as err:  # noqa: BLE001 - handed to the service callback
@@ -333,30 +483,19 @@ class GeodesicPlannerNode(Node):
                 state['abandoned'] = not state['published']
             if state['abandoned']:
                 self._abandoned += 1
-                self.get_logger().error(
-                    f'plan failed: timed out after {config.plan_timeout:g} s (plan_timeout); the '
-                    f'computation is abandoned and its result discarded ({self._abandoned} so far)')
-                return response
+                return Outcome(PlanErrorCode.TIMED_OUT,
+                               f'timed out after {config.plan_timeout:g} s (plan_timeout); the '
+                               f'computation is abandoned and its result discarded '
+                               f'({self._abandoned} so far)')
             done.wait()   # the trajectory is out; its tool path follows (bounded, no solver)
         err = box.get('error')
         if isinstance(err, GeodesicPlannerError):
-            self.get_logger().error(f'plan failed: {err}')
-            return response
+            return Outcome(error_code(err), str(err))
         if err is not None:
             after = ' (after publishing the trajectory)' if state['published'] else ''
-            self.get_logger().error(
-                f'internal error{after}: {type(err).__name__}: {err}')
-            return response
-        result: PlanResult = box['result']
-        self.marker_pub.publish(result.markers)
-        response.plan = result.path
-        total_ms = (time.perf_counter() - t0) * 1e3
-        self.get_logger().info(
-            f'plan: {result.points} points, {result.duration:.2f} s, solver {result.solver_method} '
-            f'({result.solver_iterations} it, {result.mesh_size} nodes), {result.solver_ms:.1f} ms '
-            f'(request {total_ms:.1f} ms: '
-            + ', '.join(f'{k} {v:.1f}' for k, v in result.stage_ms.items()) + ')')
-        return response
+            return Outcome(PlanErrorCode.PLANNING_FAILED,
+                           f'internal error{after}: {type(err).__name__}: {err}')
+        return Outcome(PlanErrorCode.SUCCESS, '', box['result'], state['published'])
 
 
 def main(args: list[str] | None = None) -> int:

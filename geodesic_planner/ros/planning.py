@@ -1,45 +1,99 @@
 """The planner node's pipeline: parameters -> configuration, request -> trajectory messages.
 
 No executor, threads or ROS I/O here: :func:`build_config` turns parameter values into an
-immutable :class:`PlannerConfig` (or a :class:`ConfigError` naming the parameter), and
-:func:`compute_plan` turns one GetPlan request into the JointTrajectory, tool Path and markers
-through the library (``GeodesicPlanner.plan``, ``path.timed``, ``trajectory.sample``).
+immutable :class:`PlannerConfig` (or a :class:`ConfigError` naming the parameter);
+:func:`get_plan_request` and :func:`plan_trajectory_request` turn a service request into the
+library's :class:`~geodesic_planner.io.requests.PlanRequest`; :func:`compute_plan` turns that into
+the JointTrajectory, tool Path and markers through the library (``PlanRequest.plan``,
+``path.timed``, ``trajectory.sample``); :func:`error_code` names the PlanErrorCode of any error.
 
-Timing: ``path.timed(max_velocity * f, max_acceleration * f**2)`` with ``f = velocity_scaling``.
-For rest-to-rest timing under box limits this is exactly time scaling as joint_trajectory_controller
-applies it (durations / f, velocities * f, accelerations * f**2, same path), sampled every
-``sample_period`` s with positions, velocities and accelerations at every point.
+Timing: ``path.timed(max_velocity * fv, max_acceleration * fa)`` with ``fv = velocity_scaling *
+velocity_scaling_factor`` and ``fa = velocity_scaling**2 * acceleration_scaling_factor`` (the
+request's factors; 0 or GetPlan: the joint_limits.yaml defaults, else 1). With factors 1 this is
+exactly time scaling as joint_trajectory_controller applies it (durations / f, velocities * f,
+accelerations * f**2, same path). The tool speed limits are scaled by ``fv``. The trajectory is
+sampled every ``sample_period`` s with positions, velocities and accelerations at every point.
 """
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
+from geodesic_planner_interfaces.msg import PlanErrorCode
+from geodesic_planner_interfaces.srv import PlanTrajectory
+from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from nav_msgs.srv import GetPlan
+from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from .. import GeodesicPlanner, load_robot
-from ..core.errors import GeodesicPlannerError, LimitError, RequestError
+from ..core.errors import (BVPError, FrameError, GeodesicPlannerError, IKError, KinematicsError,
+                           LimitError, RequestError, SingularMetricError, StartStateError,
+                           TrajectoryError)
 from ..core.kinematics import Chain
+from ..io.joint_limits import apply_joint_limits, load_joint_limits
+from ..io.requests import PlanRequest
 from . import conversions as cv
 from . import params
 from .params import PLANNER_PARAMETERS
 
 #: Largest number of points in a published trajectory (bounds memory and time per request).
 MAX_POINTS = 100_000
+#: Largest number of via poses in one request.
+MAX_VIA_POSES = 100
 
 _ROBOT_KEYS = ('robot', 'robot_description', 'base_link', 'tip_link')
 
 
 class ConfigError(GeodesicPlannerError, ValueError):
     """A parameter value is invalid (the message names the parameter and the reason)."""
+
+
+class PlanningFailedError(GeodesicPlannerError):
+    """A valid request gave no plan the node can deliver (e.g. too many trajectory points)."""
+
+
+class PlanTimeoutError(GeodesicPlannerError):
+    """The plan took longer than ``plan_timeout``."""
+
+
+#: Library error class -> PlanErrorCode value; the first class that matches wins (subclasses first).
+ERROR_CODES: tuple[tuple[type[BaseException], int], ...] = (
+    (FrameError, PlanErrorCode.FRAME_TRANSFORM_FAILURE),
+    (StartStateError, PlanErrorCode.START_STATE_MISMATCH),
+    (TrajectoryError, PlanErrorCode.PLANNING_FAILED),      # the generated trajectory, not the request
+    (ConfigError, PlanErrorCode.PLANNING_FAILED),          # no usable model yet
+    (RequestError, PlanErrorCode.INVALID_REQUEST),
+    (IKError, PlanErrorCode.NO_IK_SOLUTION),
+    (LimitError, PlanErrorCode.JOINT_LIMITS_VIOLATED),
+    (PlanTimeoutError, PlanErrorCode.TIMED_OUT),
+    (BVPError, PlanErrorCode.PLANNING_FAILED),
+    (SingularMetricError, PlanErrorCode.PLANNING_FAILED),
+    (KinematicsError, PlanErrorCode.PLANNING_FAILED),
+    (PlanningFailedError, PlanErrorCode.PLANNING_FAILED),
+    (GeodesicPlannerError, PlanErrorCode.PLANNING_FAILED),
+)
+
+#: PlanErrorCode value -> constant name (for logs and tests).
+CODE_NAMES: dict[int, str] = {
+    getattr(PlanErrorCode, name): name for name in dir(PlanErrorCode)
+    if name.isupper() and isinstance(getattr(PlanErrorCode, name), int)}
+
+
+def error_code(err: BaseException) -> int:
+    """The PlanErrorCode of an error raised while planning (PLANNING_FAILED for anything else)."""
+    for cls, code in ERROR_CODES:
+        if isinstance(err, cls):
+            return int(code)
+    return int(PlanErrorCode.PLANNING_FAILED)
 
 
 @dataclass(frozen=True)
@@ -58,6 +112,12 @@ class PlannerConfig:
         velocity_scaling: time scaling factor in (0, 1].
         sample_period: s.
         plan_timeout: s.
+        max_tool_speed: m/s, or None (no limit).
+        max_tool_angular_speed: rad/s, or None (no limit).
+        allowed_start_tolerance: rad (m), 0: no start-state check.
+        default_velocity_factor, default_acceleration_factor: the request's scaling factors
+            when it gives 0 (joint_limits.yaml's defaults, else 1).
+        notes: warnings for the log (limits ignored, joints without an acceleration limit).
     """
 
     robot: Any
@@ -71,6 +131,12 @@ class PlannerConfig:
     velocity_scaling: float
     sample_period: float
     plan_timeout: float
+    max_tool_speed: float | None = None
+    max_tool_angular_speed: float | None = None
+    allowed_start_tolerance: float = 0.0
+    default_velocity_factor: float = 1.0
+    default_acceleration_factor: float = 1.0
+    notes: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -90,6 +156,8 @@ class PlanResult:
     #: SolverReport.method ('pullback' or 'collocation') and mesh size
     solver_method: str = ''
     mesh_size: int = 0
+    #: largest distance of the tool from the straight segment(s), m
+    path_error: float = math.nan
 
 
 def _limits(name: str, value: Sequence[float] | np.ndarray | None, default: np.ndarray, dof: int) -> np.ndarray:
@@ -126,11 +194,31 @@ def load_model(robot: str, robot_description: str, base_link: str, tip_link: str
         raise ConfigError(f'cannot load {source}: {err}') from err
 
 
+def _is_urdf_source(robot: str, robot_description: str) -> bool:
+    """True when the model comes from a URDF (which has no acceleration limits), not a preset."""
+    return bool(robot_description.strip()) or robot.endswith('.urdf') or os.sep in robot
+
+
+def _joint_limits_file(path: str, robot: Chain, accel_known: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, float, float, list[str]]:
+    """Velocity and acceleration limits, default scaling factors and notes from a joint_limits.yaml."""
+    try:
+        limits = load_joint_limits(path)
+    except GeodesicPlannerError as err:
+        raise ConfigError(f'joint_limits: {err}') from err
+    limited, notes = apply_joint_limits(robot, limits)
+    accel_known |= ~np.isnan(limits.per_joint('acceleration', robot.joint_names))
+    return (limited.max_velocity.copy(), limited.max_acceleration.copy(),
+            limits.default_velocity_scaling_factor, limits.default_acceleration_scaling_factor,
+            [f'joint_limits: {n}' for n in notes])
+
+
 def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) -> PlannerConfig:
     """Validate parameter values and build a :class:`PlannerConfig`.
 
     The robot model and the planner are reused from ``previous`` when their parameters are
-    unchanged.
+    unchanged. Limits, lowest priority first: the model's (URDF or preset), ``joint_limits``
+    (the file), then ``max_velocity``/``max_acceleration`` when not empty.
 
     Args:
         values: parameter name -> value for every name in
@@ -167,9 +255,27 @@ def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) 
             except GeodesicPlannerError as err:
                 raise ConfigError(f'joint_names: {err}') from err
         robot = model
-    max_velocity = _limits('max_velocity', values['max_velocity'], robot.max_velocity, robot.dof)
+    accel_known = np.full(robot.dof, not _is_urdf_source(robot_key[0], robot_key[1]))
+    velocity, acceleration = robot.max_velocity, robot.max_acceleration
+    default_fv = default_fa = 1.0
+    notes: list[str] = []
+    if str(values['joint_limits']).strip():
+        velocity, acceleration, default_fv, default_fa, notes = _joint_limits_file(
+            str(values['joint_limits']), robot, accel_known)
+    max_velocity = _limits('max_velocity', values['max_velocity'], velocity, robot.dof)
     max_acceleration = _limits('max_acceleration', values['max_acceleration'],
-                               robot.max_acceleration, robot.dof)
+                               acceleration, robot.dof)
+    if list(values['max_acceleration'] or []):
+        accel_known[:] = True
+    if not accel_known.all():
+        missing = [n for n, known in zip(robot.joint_names, accel_known) if not known]
+        used = sorted({f'{a:g}' for a, known in zip(max_acceleration, accel_known) if not known})
+        notes.append(
+            f'no acceleration limit for joints {missing} from the model, joint_limits or '
+            f'max_acceleration: using the default {", ".join(used)} rad/s^2 (m/s^2 for prismatic '
+            'joints); set them in a joint_limits.yaml')
+    tool_speed = float(values['max_tool_speed'])
+    tool_angular_speed = float(values['max_tool_angular_speed'])
     planner_key = robot_key + (names, metric, pw, ow)
     if previous is not None and previous.planner_key == planner_key:
         planner = previous.planner
@@ -183,10 +289,14 @@ def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) 
         robot=robot, planner=planner, robot_key=robot_key + (names,), planner_key=planner_key,
         joint_names=tuple(robot.joint_names), frame_id=frame_id or robot.base_link,
         max_velocity=max_velocity, max_acceleration=max_acceleration,
-        velocity_scaling=scaling, sample_period=sample_period, plan_timeout=plan_timeout)
+        velocity_scaling=scaling, sample_period=sample_period, plan_timeout=plan_timeout,
+        max_tool_speed=tool_speed or None, max_tool_angular_speed=tool_angular_speed or None,
+        allowed_start_tolerance=float(values['allowed_start_tolerance']),
+        default_velocity_factor=default_fv, default_acceleration_factor=default_fa,
+        notes=tuple(notes))
 
 
-# --------------------------------------------------------------------------- planning
+# --------------------------------------------------------------------------- requests
 
 def _tolerance(value: float) -> float | None:
     tol = float(value)
@@ -195,72 +305,160 @@ def _tolerance(value: float) -> float | None:
     return tol if tol > 0.0 else None
 
 
+def _factor(value: float, what: str) -> float | None:
+    """A request's scaling factor in (0, 1], or None for 0 (the default)."""
+    f = float(value)
+    if not (math.isfinite(f) and 0.0 <= f <= 1.0):
+        raise RequestError(f'{what}: must be in [0, 1] (0: the default), got {f!r}')
+    return f if f > 0.0 else None
+
+
+def get_plan_request(config: PlannerConfig, msg: GetPlan.Request) -> PlanRequest:
+    """The library request of a nav_msgs/GetPlan request (start = current state when unset).
+
+    Raises:
+        RequestError: NaN/inf, bad quaternion, negative tolerance; FrameError: not the base frame.
+    """
+    goal = cv.pose_stamped_to_matrix(msg.goal, config.frame_id, 'goal')
+    tolerance = _tolerance(msg.tolerance)
+    start = None
+    if not cv.is_current_state_pose(msg.start):
+        start = cv.pose_stamped_to_matrix(msg.start, config.frame_id, 'start')
+    return PlanRequest(config.robot, start, goal, tolerance=tolerance)
+
+
+def plan_trajectory_request(config: PlannerConfig, msg: PlanTrajectory.Request
+                            ) -> tuple[PlanRequest, float | None, float | None]:
+    """The library request and the scaling factors (None: default) of a PlanTrajectory request.
+
+    Raises:
+        RequestError: a pose or joint state that is malformed, both a pose and joints for one end,
+            no goal, too many via poses, a factor outside [0, 1]; FrameError: not the base frame.
+    """
+    names = config.joint_names
+
+    def end(pose: PoseStamped, joints: JointState, what: str) -> tuple[np.ndarray | None, np.ndarray | None]:
+        given_pose = not cv.is_empty_pose(pose)
+        if len(joints.name) or len(joints.position):
+            if given_pose:
+                raise RequestError(f'{what}: give {what} or {what}_joints, not both')
+            return None, cv.joint_state_to_vector(joints, names, f'{what}_joints')
+        if given_pose:
+            return cv.pose_stamped_to_matrix(pose, config.frame_id, what), None
+        return None, None
+
+    start, start_joints = end(msg.start, msg.start_joints, 'start')
+    goal, goal_joints = end(msg.goal, msg.goal_joints, 'goal')
+    if goal is None and goal_joints is None:
+        raise RequestError('goal: give a goal pose (frame_id empty or the base frame) or goal_joints')
+    if len(msg.via_poses) > MAX_VIA_POSES:
+        raise RequestError(f'via_poses: {len(msg.via_poses)} poses, more than {MAX_VIA_POSES}')
+    via = [cv.pose_stamped_to_matrix(v, config.frame_id, f'via_poses[{i}]')
+           for i, v in enumerate(msg.via_poses)]
+    if via and goal is None:
+        raise RequestError('via_poses: a via sequence must end at a goal pose, not goal_joints')
+    request = PlanRequest(config.robot, start, goal, start_joints, goal_joints, via)
+    return (request, _factor(msg.velocity_scaling_factor, 'velocity_scaling_factor'),
+            _factor(msg.acceleration_scaling_factor, 'acceleration_scaling_factor'))
+
+
+# --------------------------------------------------------------------------- planning
+
 class PlanAbandonedError(Exception):
     """Raised by :func:`compute_plan` when ``on_trajectory`` declines the trajectory."""
 
 
-def compute_plan(config: PlannerConfig, request: GetPlan.Request,
+def _start_from_state(config: PlannerConfig, current_q: np.ndarray | None) -> np.ndarray:
+    """The current joint state as the start, checked against the joint limits."""
+    if current_q is None:
+        raise RequestError(
+            'start: "current joint state" requested (no start pose or joints given) but no valid '
+            f'/joint_states message with the joints {list(config.joint_names)} has been received')
+    outside = [f'{name}={q:.6g} not in [{lo:.6g}, {hi:.6g}]' for name, q, lo, hi in zip(
+        config.joint_names, current_q, config.robot.lower, config.robot.upper)
+        if not (lo - 1e-9 <= q <= hi + 1e-9)]
+    if outside:
+        raise LimitError(f'start: current joint state outside the joint limits: {", ".join(outside)}')
+    return current_q
+
+
+def check_start_state(config: PlannerConfig, q_start: np.ndarray, current_q: np.ndarray | None) -> None:
+    """Refuse a plan whose first point is farther than ``allowed_start_tolerance`` from the robot.
+
+    Raises:
+        StartStateError: the largest joint difference exceeds the tolerance (names the joint).
+    """
+    tol = config.allowed_start_tolerance
+    if current_q is None or tol <= 0.0:
+        return
+    diff = np.abs(np.asarray(q_start, dtype=float) - current_q)
+    i = int(np.argmax(diff))
+    if diff[i] > tol:
+        raise StartStateError(
+            f'start: the plan starts {diff[i]:.6g} (rad or m) away from the current joint state at '
+            f'joint {config.joint_names[i]!r} (plan {q_start[i]:.6g}, current {current_q[i]:.6g}); '
+            f'allowed_start_tolerance is {tol:g}')
+
+
+def compute_plan(config: PlannerConfig, request: PlanRequest,
                  current_q: np.ndarray | None, stamp: Time | None = None,
-                 on_trajectory: Callable[[JointTrajectory], bool] | None = None) -> PlanResult:
-    """Plan for one GetPlan request (no ROS I/O: messages in, messages out).
+                 on_trajectory: Callable[[JointTrajectory], bool] | None = None, *,
+                 velocity_factor: float | None = None,
+                 acceleration_factor: float | None = None) -> PlanResult:
+    """Plan one request (no ROS I/O: a request in, messages out).
 
     Args:
         config: configuration snapshot.
-        request: start/goal poses (base frame) and tolerance (m).
-        current_q: latest valid joint state in chain order, shape (dof,), or None.
+        request: start (pose, joints, or neither: the current joint state), goal, via poses.
+        current_q: latest valid joint state in chain order, shape (dof,), or None. When given, it
+            seeds the start pose's IK and the plan's first point is checked against it
+            (:func:`check_start_state`).
         stamp: builtin_interfaces/Time for the Path header.
         on_trajectory: called with the validated trajectory before the tool path is built (the
             node publishes it there, so that a controller gets it as early as possible);
             returning False abandons the plan.
+        velocity_factor, acceleration_factor: the request's scaling factors in (0, 1]; None: the
+            configuration's defaults.
     Raises:
-        GeodesicPlannerError: invalid or unreachable request, solver failure (message names the cause).
+        GeodesicPlannerError: invalid or unreachable request, solver failure (message names the
+            cause; :func:`error_code` gives its PlanErrorCode).
         PlanAbandonedError: ``on_trajectory`` returned False.
     """
-    goal = cv.pose_stamped_to_matrix(request.goal, config.frame_id, 'goal')
-    tolerance = _tolerance(request.tolerance)
-    if cv.is_current_state_pose(request.start):
-        if current_q is None:
-            raise RequestError(
-                'start: "current joint state" requested (empty frame_id, zero quaternion) but no '
-                f'valid /joint_states message with the joints {list(config.joint_names)} '
-                'has been received')
-        outside = [f'{name}={q:.6g} not in [{lo:.6g}, {hi:.6g}]' for name, q, lo, hi in zip(
-            config.joint_names, current_q, config.robot.lower, config.robot.upper)
-            if not (lo - 1e-9 <= q <= hi + 1e-9)]
-        if outside:
-            raise RequestError(f'start: current joint state outside the joint limits: '
-                               f'{", ".join(outside)}')
-        start, start_joints = None, current_q
-    else:
-        start = cv.pose_stamped_to_matrix(request.start, config.frame_id, 'start')
-        start_joints = None
-    kwargs: dict[str, Any] = {'start_joints': start_joints}
-    if tolerance is not None:
-        kwargs['tolerance'] = tolerance
+    if request.start is None and request.start_joints is None:
+        request = replace(request, start_joints=_start_from_state(config, current_q))
     t0 = time.perf_counter()
-    path = config.planner.plan(start, goal, **kwargs)
+    path = request.plan(config.planner, start_seed=current_q)
+    check_start_state(config, path.q_start, current_q)
     t1 = time.perf_counter()
-    f = config.velocity_scaling
-    trajectory = path.timed(max_velocity=config.max_velocity * f,
-                            max_acceleration=config.max_acceleration * f * f)
+    fv = config.velocity_scaling * (velocity_factor or config.default_velocity_factor)
+    fa = config.velocity_scaling ** 2 * (acceleration_factor or config.default_acceleration_factor)
+    tool: dict[str, float] = {}
+    if config.max_tool_speed is not None:
+        tool['max_tool_speed'] = config.max_tool_speed * fv
+    if config.max_tool_angular_speed is not None:
+        tool['max_tool_angular_speed'] = config.max_tool_angular_speed * fv
+    trajectory = path.timed(max_velocity=config.max_velocity * fv,
+                            max_acceleration=config.max_acceleration * fa, **tool)
     points = int(trajectory.duration / config.sample_period) + 2
     if points > MAX_POINTS:
-        raise LimitError(
+        raise PlanningFailedError(
             f'the trajectory would have {points} points ({trajectory.duration:.3g} s every '
-            f'{config.sample_period:g} s), more than {MAX_POINTS}: increase sample_period')
+            f'{config.sample_period:g} s), more than {MAX_POINTS}: increase sample_period or the '
+            'scaling factors')
     t, q, dq, ddq = trajectory.sample(config.sample_period)
     t2 = time.perf_counter()
     msg = cv.arrays_to_joint_trajectory(list(config.joint_names), t, q, dq, ddq)
     problems = cv.validate_joint_trajectory(msg)
     if problems:
-        raise RuntimeError(f'generated trajectory is invalid: {problems[:3]}')
+        raise TrajectoryError(f'generated trajectory is invalid: {problems[:3]}')
     t3 = time.perf_counter()
     if on_trajectory is not None and not on_trajectory(msg):
         raise PlanAbandonedError
     t4 = time.perf_counter()
-    tool = config.robot.fk(q)
-    path_msg = cv.poses_to_path(tool, config.frame_id, stamp)
-    markers = cv.path_markers(tool, config.frame_id)
+    poses = config.robot.fk(q)
+    path_msg = cv.poses_to_path(poses, config.frame_id, stamp)
+    markers = cv.path_markers(poses, config.frame_id)
+    path_error = path.line_deviation()
     t5 = time.perf_counter()
     solver = path.solver
     stages = {'plan': (t1 - t0) * 1e3, 'timing': (t2 - t1) * 1e3,
@@ -268,4 +466,4 @@ def compute_plan(config: PlannerConfig, request: GetPlan.Request,
               'tool path': (t5 - t4) * 1e3}
     return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
                       int(solver.iterations), float(solver.time_ms), stages,
-                      solver.method, int(solver.mesh_size))
+                      solver.method, int(solver.mesh_size), path_error)
