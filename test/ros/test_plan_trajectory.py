@@ -278,12 +278,16 @@ def test_error_code_and_reason_in_the_reply(planar: Planner, case: str,
 
 
 def test_timed_out(planar: Planner) -> None:
+    # ~60000 points take about a second to build before any publish, so the 1 us timeout fires
+    # first even on a busy machine (a trajectory already published would make the plan succeed)
+    first = planar.plan(plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R)))
+    duration = cv.joint_trajectory_to_arrays(first.trajectory).t[-1]
     n0 = len(planar.traj)
-    planar.set_parameters(plan_timeout=1e-6)
+    planar.set_parameters(plan_timeout=1e-6, sample_period=duration / 60000)
     try:
         resp = planar.plan(plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R), execute=True))
     finally:
-        planar.set_parameters(plan_timeout=5.0)
+        planar.set_parameters(plan_timeout=5.0, sample_period=0.01)
     assert resp.error_code.val == PlanErrorCode.TIMED_OUT, resp.message
     assert 'plan_timeout' in resp.message
     _good_after(planar, n0)
