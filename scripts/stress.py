@@ -100,13 +100,16 @@ def main(argv: list[str]) -> int:
         for hog in hogs:
             hog.wait()
 
-    width = max([len('test'), *map(len, runs)])
+    def shown(key: str, limit: int = 160) -> str:   # a parametrized id can be huge
+        return key if len(key) <= limit else key[:limit - 3] + '...'
+
+    width = max([len('test'), *(len(shown(k)) for k in runs)])
     command = shlex.join(['bash', 'scripts/test.sh', *pytest_args])
     print(f'\n{args.n} runs of `{command}` beside {args.k} CPU-bound process(es)\n')
     print(f'| {"test":<{width}} | runs | failures |')
     print(f'|{"-" * (width + 2)}|-----:|---------:|')
     for key in sorted(runs, key=lambda k: (-failures[k], k)):
-        print(f'| {key:<{width}} | {runs[key]:4d} | {failures[key]:8d} |')
+        print(f'| {shown(key):<{width}} | {runs[key]:4d} | {failures[key]:8d} |')
     per_file: dict[str, list[int]] = defaultdict(lambda: [0, 0, 0])   # tests, test runs, failures
     for key in runs:
         row = per_file[key.split('::')[0]]

@@ -212,7 +212,7 @@ GOOD = ('<robot name="r"><link name="a"/><link name="b"/>'
         '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
 
 
-@pytest.mark.parametrize('xml, match', [
+_MALFORMED = [
     (GOOD.replace('</robot>', ''), 'not valid XML'),
     ('<robot name="r"><link name="a"></robot>', 'not valid XML'),
     (GOOD.replace('<robot name="r">', '<model name="r">').replace('</robot>', '</model>'),
@@ -231,7 +231,10 @@ GOOD = ('<robot name="r"><link name="a"/><link name="b"/>'
                   '<child link="b"/></joint></robot>'), "link 'b' has two parent joints"),
     (GOOD.replace('type="revolute"', 'type="floating"'), "unsupported type 'floating'"),
     (GOOD.replace('type="revolute"', 'type="fixed"'), "no actuated joint between 'a' and 'b'"),
-])
+]
+
+
+@pytest.mark.parametrize('xml, match', _MALFORMED, ids=[f'{i}-{m[:30]}' for i, (_, m) in enumerate(_MALFORMED)])
 def test_malformed_urdf_errors(xml, match):
     chain_from_urdf(GOOD)  # the unmodified document is fine
     with pytest.raises(KinematicsError, match=match):
@@ -321,7 +324,7 @@ def test_any_link_graph_gives_a_chain_or_one_clear_error(parents, base, tip):
     ('<robot name="r">' + '<link name="x"/>' * 20_001 + '</robot>', 'more than the 20000'),
     (GOOD.replace('velocity="1"', 'velocity="inf"'), 'must be finite'),
     (GOOD.replace('lower="-1"', 'lower="nan"'), 'must be finite'),
-])
+], ids=['doctype', 'too-many-elements', 'inf-velocity', 'nan-limit'])
 def test_hostile_documents_are_refused(xml, match):
     with pytest.raises(KinematicsError, match=match):
         chain_from_urdf(xml)

@@ -443,14 +443,22 @@ def test_tolerance_for_unreachable_pose(planar: PlannerUnderTest, rosout: Collec
 
 def test_plan_timeout_fails_request_and_publishes_nothing(planar: PlannerUnderTest,
                                                           rosout: Collector) -> None:
+    # A plan whose trajectory is published before the timeout fires succeeds (by design: it is
+    # out). So the plan must take long compared with a scheduling delay of the waiting thread on a
+    # busy machine: ~60000 points take on the order of a second to build before any publish.
+    n0 = len(planar.traj)
+    assert len(planar.plan(paper_request()).plan.poses) > 0
+    last = planar.wait_trajectories(n0 + 1)[-1].points[-1].time_from_start
+    duration = last.sec + last.nanosec * 1e-9
     k0 = planar.log_mark(rosout)
     n0 = len(planar.traj)
     try:
-        assert all(r.successful for r in planar.set_parameters(plan_timeout=1e-6))
+        assert all(r.successful for r in planar.set_parameters(plan_timeout=1e-6,
+                                                               sample_period=duration / 60000))
         assert len(planar.plan(paper_request()).plan.poses) == 0
         wait_log(rosout, k0, planar.logger, ERROR, 'timed out after 1e-06 s')
     finally:
-        assert all(r.successful for r in planar.set_parameters(plan_timeout=5.0))
+        assert all(r.successful for r in planar.set_parameters(plan_timeout=5.0, sample_period=0.01))
     # the abandoned (paper) plan was never published: the next message is this one (own goal)
     assert len(planar.plan(request(pose_3r(*START_3R), pose_3r(*OTHER_GOAL_3R))).plan.poses) > 0
     msgs = planar.wait_trajectories(n0 + 1)
