@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import logging
 
-from .core.errors import (BagError, BVPError, GeodesicPlannerError, IKError, KinematicsError, LimitError,
-                     RequestError, SingularMetricError)
+from .core.errors import (BagError, BVPError, FrameError, GeodesicPlannerError, IKError, KinematicsError,
+                          LimitError, RequestError, SingularMetricError, StartStateError)
 from .core.geodesic import GeodesicEquations, GeodesicPath, SolverReport
 from .core.ik import IKSolution, solve_ik
 from .core.kinematics import Chain, Joint, chain_from_dh
@@ -20,26 +20,28 @@ logging.getLogger(__name__).addHandler(logging.NullHandler())
 __version__ = '0.1.0'
 
 __all__ = [
-                     'PRESETS',
-                     'BVPError',
-                     'BagError',
-                     'Chain',
-                     'GeodesicEquations',
-                     'GeodesicPath',
-                     'GeodesicPlanner',
-                     'GeodesicPlannerError',
-                     'IKError',
-                     'IKSolution',
-                     'Joint',
-                     'JointPath',
-                     'KinematicsError',
-                     'LimitError',
-                     'Metric',
-                     'PiecewiseGeodesicPath',
-                     'RequestError',
-                     'SingularMetricError',
-                     'SolverReport',
-                     'chain_from_dh',
-                     'load_robot',
-                     'solve_ik',
+                          'PRESETS',
+                          'BVPError',
+                          'BagError',
+                          'Chain',
+                          'FrameError',
+                          'GeodesicEquations',
+                          'GeodesicPath',
+                          'GeodesicPlanner',
+                          'GeodesicPlannerError',
+                          'IKError',
+                          'IKSolution',
+                          'Joint',
+                          'JointPath',
+                          'KinematicsError',
+                          'LimitError',
+                          'Metric',
+                          'PiecewiseGeodesicPath',
+                          'RequestError',
+                          'SingularMetricError',
+                          'SolverReport',
+                          'StartStateError',
+                          'chain_from_dh',
+                          'load_robot',
+                          'solve_ik',
 ]
