@@ -2,7 +2,14 @@
 
 Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default):
 
-* service ``~/plan`` (nav_msgs/srv/GetPlan): ``start``/``goal`` PoseStamped in the base frame
+* service ``~/plan_trajectory`` (geodesic_planner_interfaces/srv/PlanTrajectory): start (pose,
+  joints, or unset = the current joint state), goal (pose or joints), via poses, scaling factors
+  and ``execute``; the reply carries the PlanErrorCode (:data:`~.planning.ERROR_CODES` maps each
+  library error class to one), the reason, the trajectory, the tool path and the solver's figures.
+  Plan-only unless ``execute`` is true. With a joint state known, an explicit start is solved
+  seeded from it and refused (START_STATE_MISMATCH) beyond ``allowed_start_tolerance``.
+* service ``~/plan`` (nav_msgs/srv/GetPlan, compatibility; every success is published, no
+  start-state check): ``start``/``goal`` PoseStamped in the base frame
   (empty frame_id = base frame; any other frame is rejected). A ``start`` with an empty frame_id
   and an all-zero quaternion means "from the current joint state" (latest valid ``/joint_states``).
   ``tolerance`` (m) is the allowed distance between a requested pose and the nearest reachable one
@@ -15,6 +22,9 @@ Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default)
   controller that connects later must not execute an old plan (transient_local would replay it).
 * topic ``~/path_markers`` (visualization_msgs/MarkerArray), reliable, transient_local, depth 1:
   the tool path line strip and start/goal axes of the latest plan (RViz started later sees it).
+* subscription ``/robot_description`` (std_msgs/String, reliable, transient local): the URDF
+  used while the ``robot`` parameter is empty (until it arrives, plans fail with PLANNING_FAILED
+  saying so).
 * subscription ``/joint_states`` (sensor_msgs/JointState, any joint order, extra joints ignored),
   best effort, depth 10 (only the latest state matters; matches reliable and best-effort
   publishers). A message must contain every robot joint exactly once with finite positions;
