@@ -158,7 +158,7 @@ def gauss_newton_batch(
     target = targets[:, :3, :] * w
     q = np.array(seeds, dtype=float, copy=True)
     n = robot.dof
-    reg = 1e-14 * np.eye(n)
+    eye = np.eye(n)
     for _ in range(max_iterations + 1):
         X, T = robot.generators(q)
         e = (T[:, :3, :] * w - target).reshape(-1, 12)
@@ -166,7 +166,10 @@ def gauss_newton_batch(
         if cost.max() <= residual_tol * residual_tol or _ == max_iterations:
             break
         J = ((X @ T[:, None])[:, :, :3, :] * w).reshape(-1, n, 12)       # (N, dof, 12) = Jᵀ
-        A = J @ J.transpose(0, 2, 1) + reg
+        A = J @ J.transpose(0, 2, 1)
+        # Regularisation relative to A's scale (the weights square into it): JJᵀ of a redundant
+        # arm is singular, and a fixed 1e-14 vanishes against weights of 10 or more.
+        A += (1e-12 * np.trace(A, axis1=1, axis2=2) / n + 1e-300)[:, None, None] * eye
         g = J @ e[..., None]
         dq = np.linalg.solve(A, g)[..., 0]
         if max_step is not None:

@@ -84,6 +84,17 @@ def positive(value: object) -> str | None:
     return None
 
 
+def in_range(lo: float, hi: float) -> Check:
+    """Finite and in [lo, hi]: the values with which the node was checked to work."""
+    def check(value: object) -> str | None:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return f'must be a number, got {value!r}'
+        if not (math.isfinite(float(value)) and lo <= float(value) <= hi):
+            return f'must be in [{lo:g}, {hi:g}], got {value!r}'
+        return None
+    return check
+
+
 def non_negative(value: object) -> str | None:
     """Finite and >= 0."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -172,9 +183,13 @@ _SPECS = (
               "Riemannian metric: 'paper' (position + orientation, Chen et al. 2016) or 'position'.",
               "'paper' or 'position'", one_of(METRICS)),
     ParamSpec('position_weight', DOUBLE, 1.0, 'Weight of the position term of the metric.',
-              '> 0', positive),
-    ParamSpec('orientation_weight', DOUBLE, 1.0, 'Weight of the orientation term of the metric.',
-              '> 0', positive),
+              'in [0.001, 1000]; orientation_weight / position_weight in [0.001, 100]',
+              in_range(1e-3, 1e3)),
+    ParamSpec('orientation_weight', DOUBLE, 1.0,
+              'Weight of the orientation term of the metric (a length, m: the lever arm at which a '
+              'rotation counts like a translation).',
+              'in [0.001, 1000]; orientation_weight / position_weight in [0.001, 100]',
+              in_range(1e-3, 1e3)),
     # planner: limits and outputs
     ParamSpec('max_velocity', DOUBLES, [],
               'Joint velocity limits, rad/s or m/s (empty: URDF/robot defaults; one value: all '
@@ -202,13 +217,13 @@ _SPECS = (
     ParamSpec('velocity_scaling', DOUBLE, 1.0,
               'Time scaling factor f: durations / f, velocities * f, accelerations * f^2.',
               'in (0, 1]', unit_interval),
-    ParamSpec('sample_period', DOUBLE, 0.01, 'Time between trajectory points, s.', 'finite, > 0',
-              positive),
+    ParamSpec('sample_period', DOUBLE, 0.01, 'Time between trajectory points, s.',
+              'in [1e-05, 10]', in_range(1e-5, 10.0)),
     # planner
     ParamSpec('frame_id', STRING, '', 'Base frame of requests and outputs (empty: the model base link).'),
     ParamSpec('plan_timeout', DOUBLE, 5.0,
-              'Longest time a request waits for its plan, s (late plans fail).', 'finite, > 0',
-              positive),
+              'Longest time a request waits for its plan, s (late plans fail).', 'in [1e-06, 3600]',
+              in_range(1e-6, 3600.0)),
     # processor (fixed at start)
     ParamSpec('input_topic', STRING, DEFAULT_INPUT_TOPIC,
               'JointTrajectory topic to process (reliable, keep_all).', 'non-empty', non_empty,

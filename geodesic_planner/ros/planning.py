@@ -47,6 +47,8 @@ from .params import PLANNER_PARAMETERS
 
 #: Largest number of points in a published trajectory (bounds memory and time per request).
 MAX_POINTS = 100_000
+#: Accepted range of orientation_weight / position_weight (m); measured to plan on every preset.
+WEIGHT_RATIO = (1e-3, 1e2)
 #: Largest number of via poses in one request.
 MAX_VIA_POSES = 100
 
@@ -236,6 +238,11 @@ def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) 
     metric = values['metric']
     pw = float(values['position_weight'])
     ow = float(values['orientation_weight'])
+    if not WEIGHT_RATIO[0] <= ow / pw <= WEIGHT_RATIO[1]:
+        raise ConfigError(
+            f'orientation_weight / position_weight must be in [{WEIGHT_RATIO[0]:g}, '
+            f'{WEIGHT_RATIO[1]:g}] m, got {ow:g} / {pw:g} = {ow / pw:g} (beyond it the metric is '
+            'numerically singular for some arms)')
     scaling = float(values['velocity_scaling'])
     sample_period = float(values['sample_period'])
     plan_timeout = float(values['plan_timeout'])

@@ -570,3 +570,21 @@ def test_regression_same_pose_self_motion() -> None:
     moved = float(np.abs(path.evaluate(S_CHECK)[0] - path.q_start).max())
     assert moved == 0.0 and path.length == 0.0, f'joints moved by {moved:.3g} rad'
     assert path.timed().duration == 0.0
+
+
+@pytest.mark.parametrize('robot_name', ['planar_3r', 'rrpp', 'ur5e', 'panda'])
+@pytest.mark.parametrize('ratio', [1e-3, 1e-1, 10.0, 1e2])
+def test_every_accepted_weight_ratio_plans(robot_name, ratio):
+    """The node accepts orientation_weight / position_weight in [1e-3, 1e2] (WEIGHT_RATIO): each
+    such metric must plan on every preset. (Regression: panda at ratio 10 raised numpy's
+    LinAlgError out of the Gauss-Newton guess, whose regularisation did not scale with the weights.)"""
+    from geodesic_planner.core.transforms import pose_error
+    robot = load_robot(robot_name)
+    planner = GeodesicPlanner(robot, orientation_weight=ratio)
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        q0 = np.clip(robot.home + rng.uniform(-0.3, 0.3, robot.dof), robot.lower, robot.upper)
+        q1 = np.clip(q0 + rng.uniform(-0.3, 0.3, robot.dof), robot.lower, robot.upper)
+        path = planner.plan(None, robot.fk(q1), start_joints=q0)
+        dp, dr = pose_error(path.ee_poses(np.array([1.0]))[0], robot.fk(q1))
+        assert dp < 1e-6 and dr < 1e-6

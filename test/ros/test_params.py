@@ -27,8 +27,14 @@ def test_both_nodes_declare_from_one_table() -> None:
     ('velocity_scaling', math.nan, 'velocity_scaling: must be in (0, 1]'),
     ('velocity_scaling', 'fast', 'velocity_scaling: must be a number'),
     ('velocity_scaling', True, 'velocity_scaling: must be a number'),
-    ('sample_period', -0.01, 'sample_period: must be finite and > 0'),
-    ('plan_timeout', math.inf, 'plan_timeout: must be finite and > 0'),
+    ('sample_period', -0.01, 'sample_period: must be in [1e-05, 10]'),
+    ('sample_period', 5e-324, 'sample_period: must be in [1e-05, 10]'),
+    ('plan_timeout', math.inf, 'plan_timeout: must be in [1e-06, 3600]'),
+    ('plan_timeout', 1e300, 'plan_timeout: must be in [1e-06, 3600]'),
+    ('orientation_weight', 1e300, 'orientation_weight: must be in [0.001, 1000]'),
+    ('position_weight', 0.0, 'position_weight: must be in [0.001, 1000]'),
+    ('max_tool_speed', -1.0, 'max_tool_speed: must be finite and >= 0'),
+    ('allowed_start_tolerance', math.nan, 'allowed_start_tolerance: must be finite and >= 0'),
     ('metric', 'euclid', 'metric: must be one of paper, position'),
     ('storage', 'rosbag1', 'storage: must be one of mcap, sqlite3'),
     ('max_velocity', [1.0, -2.0], 'max_velocity: every value must be finite and > 0'),
@@ -44,6 +50,8 @@ def test_invalid_values_named(name: str, value: object, reason: str) -> None:
 
 @pytest.mark.parametrize('name, value', [
     ('velocity_scaling', 1), ('velocity_scaling', 0.25), ('sample_period', 0.02),
+    ('sample_period', 1e-5), ('plan_timeout', 3600), ('orientation_weight', 1000),
+    ('max_tool_speed', 0.0), ('allowed_start_tolerance', 0),
     ('max_velocity', []), ('max_velocity', [1, 2.5]), ('joint_names', []), ('storage', 'sqlite3'),
     ('record_topics', ['/a', '/b=std_msgs/msg/String']), ('robot', 'anything'),
 ])

@@ -612,6 +612,9 @@ def test_parameter_rejection_keeps_old_values(planar: PlannerUnderTest, rosout: 
         ({'max_velocity': [1.0, 2.0]}, 'max_velocity: 2 values for a robot with 3 joints'),
         ({'max_acceleration': [1.0, -2.0, 1.0]}, 'max_acceleration'),
         ({'sample_period': 0.0}, 'sample_period'),
+        ({'plan_timeout': 1e300}, 'plan_timeout: must be in [1e-06, 3600]'),
+        ({'orientation_weight': 1e300}, 'orientation_weight: must be in [0.001, 1000]'),
+        ({'orientation_weight': 500.0}, 'orientation_weight / position_weight must be in'),
         ({'metric': 'euclid'}, 'metric'),
         ({'joint_names': ['a', 'b']}, 'joint_names'),
         ({'joint_names': ['a', 'a', 'b']}, 'joint_names'),
@@ -671,9 +674,13 @@ def test_sample_period_parameter(planar: PlannerUnderTest, rosout: Collector) ->
         steps = np.diff(arr.t)
         assert_allclose(steps[:-1], 0.05, atol=1e-9)
         assert 0.0 < steps[-1] <= 0.05 + 1e-9
-        # a period so small that the message would be huge: refused with the cause, not built
+        # a period below the accepted range is refused at set time, with the range
+        (result,) = planar.set_parameters(sample_period=5e-324)
+        assert not result.successful and 'sample_period: must be in [1e-05, 10]' in result.reason
+        # the smallest accepted period with a plan so long that the message would be huge: the
+        # request is refused with the cause, the message never built
         k0 = planar.log_mark(rosout)
-        assert all(r.successful for r in planar.set_parameters(sample_period=1e-7))
+        assert all(r.successful for r in planar.set_parameters(sample_period=1e-5))
         assert len(planar.plan(paper_request()).plan.poses) == 0
         wait_log(rosout, k0, planar.logger, ERROR, 'increase sample_period')
     finally:

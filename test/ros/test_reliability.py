@@ -282,7 +282,7 @@ def run_scenario(nodes: dict[str, Any], ros_node: Any, per_client: int, *, good_
                     for client, values, reason in (
                             (planner_params, {'velocity_scaling': 2.0}, 'velocity_scaling: must be in (0, 1]'),
                             (planner_params, {'max_velocity': [1.0, 2.0]}, 'max_velocity: 2 values'),
-                            (processor_params, {'sample_period': -0.01}, 'sample_period: must be finite and > 0'),
+                            (processor_params, {'sample_period': -0.01}, 'sample_period: must be in [1e-05, 10]'),
                             (processor_params, {'velocity_scaling': float('inf')},
                              'velocity_scaling: must be in (0, 1]')):
                         (res,) = set_params(client, watch, **values)
