@@ -18,8 +18,8 @@ The description is plain data (:func:`describe`), so this file imports without `
 describes with the arguments :meth:`NodeSpec.ros_arguments` gives. Only
 :func:`generate_launch_description`, which ``ros2 launch`` calls, imports them.
 """
-from __future__ import annotations
-
+# No `from __future__ import annotations`: ros2 launch executes this file as a module that is not
+# in sys.modules, where dataclasses cannot resolve string annotations.
 import re
 from dataclasses import dataclass
 from pathlib import Path
