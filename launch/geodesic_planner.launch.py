@@ -3,8 +3,10 @@
 Usage::
 
     ros2 launch geodesic_planner geodesic_planner.launch.py
-    ros2 launch geodesic_planner geodesic_planner.launch.py namespace:=robot1 \\
-        planner_config:=/path/to/my_planner.yaml joint_limits:=/path/to/joint_limits.yaml
+    ros2 launch geodesic_planner geodesic_planner.launch.py namespace:=robot1 joint_limits:=/path/to/limits.yaml
+
+Arguments (``ros2 launch ... --show-args``): ``namespace``, ``planner_config``,
+``processor_config`` (parameter files; default: this package's config/), ``joint_limits``.
 
 Several robots side by side: one launch per namespace. Each pair then talks only within its
 namespace: the processor's ``input_topic`` (config/trajectory_processor.yaml) is relative, so it
