@@ -28,6 +28,10 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         'markers', 'slow: long run; skipped unless --run-slow or GP_RUN_SLOW=1')
     config.addinivalue_line('markers', 'linter: style/consistency checks of the source tree')
+    # colcon test hands its options (--junit-xml=..., its --pytest-args) to pytest in PYTEST_ADDOPTS,
+    # read by now. Tests that start pytest again (scripts/test.sh, the conftest checks) must not
+    # inherit them: a nested run would get -q twice, or write over this run's junit file.
+    os.environ.pop('PYTEST_ADDOPTS', None)
     # rosidl's parser imports lark 0.12, which uses the deprecated sre_parse/sre_constants modules.
     config.addinivalue_line(
         'filterwarnings', r'ignore:module .sre_(parse|constants). is deprecated:DeprecationWarning')
