@@ -1,4 +1,6 @@
 """ament_python packaging for geodesic_planner (also a plain pip-installable library)."""
+from glob import glob
+
 from setuptools import find_packages, setup
 
 PACKAGE = 'geodesic_planner'
@@ -12,6 +14,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
+        ('share/' + PACKAGE + '/launch', sorted(glob('launch/*.launch.py'))),
+        ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml'))),
     ],
     python_requires='>=3.10',
     install_requires=['numpy>=1.24', 'scipy>=1.10', 'pyyaml>=6'],

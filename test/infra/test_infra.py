@@ -369,12 +369,16 @@ def _pytest_with_our_conftest(tmp_path: Path, env_extra: dict[str, str],
     return result
 
 
-def test_conftest_refuses_ros_tests_outside_loopback_namespace(tmp_path: Path) -> None:
+def test_conftest_skips_ros_tests_outside_loopback_namespace(tmp_path: Path) -> None:
+    """Outside a private namespace (colcon test, a plain pytest) ros tests are skipped, with the
+    reason; the run goes on and the other tests pass."""
     result = _pytest_with_our_conftest(tmp_path, {'GEODESIC_PLANNER_NETNS': 'on'}, True)
-    assert result.returncode == 4, result.stdout + result.stderr
-    out = result.stdout + result.stderr
-    assert 'refusing to run 1 ros test(s)' in out
-    assert 'gp_extra0' in out and 'GEODESIC_PLANNER_NETNS=off' in out
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert '1 passed, 2 skipped' in result.stdout, result.stdout
+    skipped = [line for line in result.stdout.splitlines() if line.startswith('SKIPPED')]
+    ros_line = next(line for line in skipped if 'test_guard.py:' in line and 'ros:' in line)
+    assert 'not inside a loopback-only network namespace' in ros_line
+    assert 'gp_extra0' in ros_line and 'GEODESIC_PLANNER_NETNS=off' in ros_line
 
 
 def test_conftest_runs_ros_tests_in_loopback_namespace_and_skips_slow(tmp_path: Path) -> None:
