@@ -203,7 +203,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if report.damaged_file is not None:
                 print(f'original storage file kept as {report.damaged_file}')
     except (GeodesicPlannerError, OSError) as err:
-        print(f'ERROR: {err}', file=sys.stderr)
+        print(f'ERROR: {" ".join(str(err).split())}', file=sys.stderr)  # one line, also for YAML errors
         return 1
     return 0
 
