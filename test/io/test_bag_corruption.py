@@ -6,6 +6,7 @@ exception out on a damaged bag: either they read what is there (exit 0) or they 
 """
 from __future__ import annotations
 
+import atexit
 import contextlib
 import io
 import shutil
@@ -153,7 +154,9 @@ _BASE: dict[str, Path] = {}
 def _base_bag(storage: str) -> Path:
     """One pristine bag per storage for the whole session (copied before each corruption)."""
     if storage not in _BASE:
-        _BASE[storage] = make_bag(Path(tempfile.mkdtemp(prefix='gp_corrupt_')) / 'bag', storage)
+        tmp = tempfile.mkdtemp(prefix='gp_corrupt_')
+        atexit.register(shutil.rmtree, tmp, True)
+        _BASE[storage] = make_bag(Path(tmp) / 'bag', storage)
     return _BASE[storage]
 
 
