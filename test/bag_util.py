@@ -1,11 +1,15 @@
 """Bag test helpers: messages as plain objects with the message's attributes (like rclpy's)."""
 from __future__ import annotations
 
+import contextlib
 import shutil
+import subprocess
+from collections.abc import Iterator
 from pathlib import Path
 from types import SimpleNamespace as Msg
 
 import numpy as np
+import pytest
 
 IN, OUT, JS = '/geodesic_planner/joint_trajectory', '/trajectory_processor/joint_trajectory', '/joint_states'
 
@@ -39,3 +43,33 @@ def copy_as_killed(src: Path, dst: Path) -> None:
     """What a SIGKILL leaves: the files as they are now, no close(), no metadata.yaml."""
     shutil.copytree(src, dst)
     assert not (dst / 'metadata.yaml').exists()
+
+
+@contextlib.contextmanager
+def tmpfs(path: Path, size: str = '256k') -> Iterator[Path]:
+    """A tmpfs of ``size`` mounted on ``path`` (created) for the block; skips the test without one.
+
+    The suite runs in a private mount namespace as root (scripts/netns.sh: ``unshare --mount``),
+    so mounting here changes nothing outside the test process and its children.
+    """
+    path.mkdir(parents=True, exist_ok=True)
+    if not shutil.which('mount'):
+        pytest.skip('no mount command: cannot make a small file system to fill')
+    done = subprocess.run(['mount', '-t', 'tmpfs', '-o', f'size={size}', 'tmpfs', str(path)],
+                          capture_output=True, text=True, timeout=30, check=False)
+    if done.returncode != 0:
+        pytest.skip(f'cannot mount a {size} tmpfs on {path} (needs root in a private mount namespace, '
+                    f'as scripts/test.sh gives): {done.stderr.strip()}')
+    try:
+        yield path
+    finally:
+        subprocess.run(['umount', '-l', str(path)], capture_output=True, timeout=30, check=False)
+
+
+def fill(fs: Path, leave: int) -> Path:
+    """A file on the file system of ``fs`` that leaves about ``leave`` bytes free; returns it."""
+    free = shutil.disk_usage(fs).free
+    filler = fs / 'filler'
+    with filler.open('wb') as fh:
+        fh.write(b'\0' * max(0, free - leave))
+    return filler

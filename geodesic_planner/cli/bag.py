@@ -13,6 +13,10 @@ trajectory (input topic, markers) over the processor's (output topic, lines); tr
 other JointTrajectory topics, or inputs without an output, get a PNG of their own. ``repair``
 rebuilds a bag whose recording was killed (see :func:`geodesic_planner.io.bags.repair`).
 Errors print one line ``ERROR: ...`` and exit with 1.
+
+A record that does not decode never fails the whole bag: ``info`` counts and lists such records
+(``undecodable records: N``), ``plot`` skips them and says so on stderr (``skipped N undecodable
+record(s)``), ``repair`` copies what it can read. The exit code stays 0 when the rest was read.
 """
 from __future__ import annotations
 
@@ -24,7 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..core.errors import BagError, GeodesicPlannerError
-from ..io.bags import BagInfo, TrajectoryRecord, bag_info, read_trajectories, repair
+from ..io.bags import BagInfo, TrajectoryRecord, UndecodableRecord, bag_info, read_trajectories, repair
 from ..io.plotting import plot_trajectories
 
 if TYPE_CHECKING:
@@ -33,7 +37,8 @@ if TYPE_CHECKING:
 DEFAULT_INPUT_TOPIC = '/geodesic_planner/joint_trajectory'
 DEFAULT_OUTPUT_TOPIC = '/trajectory_processor/joint_trajectory'
 
-__all__ = ['DEFAULT_INPUT_TOPIC', 'DEFAULT_OUTPUT_TOPIC', 'format_info', 'main', 'pair_trajectories', 'plot_bag']
+__all__ = ['DEFAULT_INPUT_TOPIC', 'DEFAULT_OUTPUT_TOPIC', 'format_info', 'format_undecodable', 'main',
+           'pair_trajectories', 'plot_bag']
 
 
 def _utc(stamp_ns: int | None) -> str:
@@ -44,6 +49,18 @@ def _utc(stamp_ns: int | None) -> str:
 
 def _num(x: float) -> str:
     return '-' if math.isnan(x) else f'{x:.4g}'
+
+
+#: Undecodable records listed one per line (the rest is counted).
+MAX_LISTED = 10
+
+
+def format_undecodable(skipped: list[UndecodableRecord]) -> list[str]:
+    """Lines naming the first MAX_LISTED undecodable records, then how many more."""
+    lines = [f'  {r}' for r in skipped[:MAX_LISTED]]
+    if len(skipped) > MAX_LISTED:
+        lines.append(f'  ... and {len(skipped) - MAX_LISTED} more')
+    return lines
 
 
 def format_info(info: BagInfo) -> str:
@@ -67,6 +84,9 @@ def format_info(info: BagInfo) -> str:
         if s.problems:
             line += f'  INVALID: {"; ".join(s.problems[:3])}' + (' ...' if len(s.problems) > 3 else '')
         lines.append(line)
+    if info.undecodable:
+        lines.append(f'undecodable records: {len(info.undecodable)} (skipped)')
+        lines += format_undecodable(info.undecodable)
     return '\n'.join(lines)
 
 
@@ -99,18 +119,26 @@ def plot_bag(
     *,
     input_topic: str = DEFAULT_INPUT_TOPIC,
     output_topic: str = DEFAULT_OUTPUT_TOPIC,
+    skipped: list[UndecodableRecord] | None = None,
 ) -> list[Path]:
     """Write PNGs of every trajectory in a bag (input and its processed output together).
+
+    Args:
+        skipped: undecodable records (not plotted) are appended here.
 
     Returns:
         The files written, ``trajectory_00.png``, ``trajectory_01.png``, ...
 
     Raises:
-        BagError: unreadable bag or no JointTrajectory in it.
+        BagError: unreadable bag or no decodable JointTrajectory in it.
     """
-    records = read_trajectories(bag)
+    undecodable: list[UndecodableRecord] = []
+    records = read_trajectories(bag, skipped=undecodable)
+    if skipped is not None:
+        skipped.extend(undecodable)
     if not records:
-        msg = f'no trajectory_msgs/msg/JointTrajectory messages in {bag}'
+        more = f' ({len(undecodable)} undecodable record(s) skipped)' if undecodable else ''
+        msg = f'no trajectory_msgs/msg/JointTrajectory messages in {bag}{more}'
         raise BagError(msg)
     inputs = [r for r in records if r.topic == input_topic]
     outputs = [r for r in records if r.topic == output_topic]
@@ -159,10 +187,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == 'info':
             print(format_info(bag_info(args.bag)))
         elif args.command == 'plot':
+            skipped: list[UndecodableRecord] = []
             files = plot_bag(args.bag, args.output, input_topic=args.input_topic,
-                             output_topic=args.output_topic)
+                             output_topic=args.output_topic, skipped=skipped)
             for f in files:
                 print(f)
+            if skipped:
+                print(f'skipped {len(skipped)} undecodable record(s):', file=sys.stderr)
+                print('\n'.join(format_undecodable(skipped)), file=sys.stderr)
         else:
             report = repair(args.bag)
             state = 'repaired' if report.repaired else 'unchanged'
@@ -171,7 +203,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if report.damaged_file is not None:
                 print(f'original storage file kept as {report.damaged_file}')
     except (GeodesicPlannerError, OSError) as err:
-        print(f'ERROR: {err}', file=sys.stderr)
+        print(f'ERROR: {" ".join(str(err).split())}', file=sys.stderr)  # one line, also for YAML errors
         return 1
     return 0
 

@@ -30,6 +30,9 @@ DEFAULT_INPUT_TOPIC = '/geodesic_planner/joint_trajectory'
 DEFAULT_OUTPUT_TOPIC = '~/joint_trajectory'
 
 STRING, DOUBLE, DOUBLES, STRINGS = 'string', 'double', 'double array', 'string array'
+INTEGER = 'integer'
+#: Default largest number of points of one processed trajectory (1000 s at 0.01 s).
+DEFAULT_MAX_OUTPUT_POINTS = 100_000
 
 #: A check returns the problem with a value (without the parameter name), or None if it is fine.
 Check = Callable[[object], 'str | None']
@@ -41,7 +44,7 @@ class ParamSpec:
 
     Attributes:
         name: parameter name.
-        kind: STRING, DOUBLE, DOUBLES or STRINGS (shown by ``ros2 param describe``).
+        kind: STRING, INTEGER, DOUBLE, DOUBLES or STRINGS (shown by ``ros2 param describe``).
         default: value when not overridden (None: the node computes it at start).
         description: what it means, with units.
         constraints: the accepted values, in words.
@@ -110,6 +113,15 @@ def unit_interval(value: object) -> str | None:
         return f'must be a number, got {value!r}'
     if not (0.0 < float(value) <= 1.0):
         return f'must be in (0, 1], got {value!r}'
+    return None
+
+
+def positive_integer(value: object) -> str | None:
+    """An integer > 0 (a double is refused, even an integral one)."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        return f'must be an integer, got {value!r}'
+    if value <= 0:
+        return f'must be > 0, got {value!r}'
     return None
 
 
@@ -231,6 +243,10 @@ _SPECS = (
     ParamSpec('output_topic', STRING, DEFAULT_OUTPUT_TOPIC,
               'Where the processed JointTrajectory is published (remap to a controller).',
               'non-empty', non_empty, read_only=True),
+    ParamSpec('max_output_points', INTEGER, DEFAULT_MAX_OUTPUT_POINTS,
+              'Largest processed trajectory, in points; a longer output (or one of more than '
+              '16 * max_output_points joint values per field, for arms of more than 16 joints) is '
+              'refused with a reason and not published.', 'integer, > 0', positive_integer),
     ParamSpec('bag_path', STRING, '',
               'New bag directory for this run (existing non-empty: a timestamped one inside or next '
               'to it); empty disables recording.', read_only=True),
@@ -250,7 +266,7 @@ PLANNER_PARAMETERS = ('robot', 'robot_description', 'base_link', 'tip_link', 'jo
                       'max_tool_angular_speed', 'allowed_start_tolerance', 'velocity_scaling',
                       'sample_period', 'frame_id', 'plan_timeout')
 PROCESSOR_PARAMETERS = ('input_topic', 'output_topic', 'sample_period', 'velocity_scaling',
-                        'bag_path', 'storage', 'record_topics')
+                        'max_output_points', 'bag_path', 'storage', 'record_topics')
 
 
 def defaults(names: Iterable[str]) -> dict[str, Any]:

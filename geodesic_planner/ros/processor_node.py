@@ -7,9 +7,12 @@ Interface (``~`` = ``/trajectory_processor`` by default):
   exact CDR bytes are recorded first, then decoded with
   ``rclpy.serialization.deserialize_message``. keep_all rather than keep_last 10: with a depth of
   10, a burst of 30 trajectories lost 19 in the reader queue before the node saw them; with
-  keep_all a reliable publisher is flow-controlled instead (nothing dropped). Other recorded
-  topics are subscribed the same way, with "best available" reliability (reliable when every
-  publisher is).
+  keep_all a reliable publisher is flow-controlled instead (nothing dropped). A publisher whose
+  QoS cannot match (best effort) is logged as a warning. Other recorded topics (``/joint_states``
+  ...) are subscribed raw, keep_all, **best effort**: that matches reliable and best-effort
+  publishers alike (sensor data is usually published best effort). ("Best available" was decided
+  once, when the subscription was created: with no publisher yet it became reliable, and a
+  best-effort ``/joint_states`` publisher started later was never recorded.)
 * publisher ``output_topic`` (default ``~/joint_trajectory``, remap it to a controller),
   reliable, volatile, depth 10: the input resampled every ``sample_period`` s and slowed down by
   ``velocity_scaling`` f (times / f, velocities * f, accelerations * f**2, same path), positions,
@@ -23,12 +26,22 @@ Interface (``~`` = ``/trajectory_processor`` by default):
 * an invalid input (what joint_trajectory_controller would reject: empty/duplicate joint names,
   no points, wrong sizes, non-finite values, non-increasing ``time_from_start``) is logged as an
   error naming the cause, recorded as received, and not published. The node keeps going.
+* the output is bounded before anything of its size is allocated: an input whose processed form
+  would have more than ``max_output_points`` points, or more than 16 x ``max_output_points``
+  joint values per field (many joints), is refused the same way (``rejected trajectory: output
+  too large: ...`` with the numbers), and counted in ``rejected`` and ``rejected too large``.
+* the output is checked by the same validator as the input
+  (:func:`geodesic_planner.timing.validate.trajectory_problems`) before it is published: an
+  input that passes but whose interpolation is not finite (positions of +-1e308 overflow) is
+  refused (``rejected trajectory: output would be invalid: ...``). Nothing invalid is published.
 
 Parameters (:data:`geodesic_planner.ros.params.PROCESSOR_PARAMETERS`, from the schema shared with
 the planner node): ``input_topic``, ``output_topic``, ``bag_path``, ``storage``,
-``record_topics`` are read-only (fixed at start); ``sample_period`` (s, > 0) and
-``velocity_scaling`` ((0, 1]) may be changed at run time, invalid values are rejected with a
-reason (``<name>: <problem>``).
+``record_topics`` are read-only (fixed at start); ``sample_period`` (s, > 0),
+``velocity_scaling`` ((0, 1]) and ``max_output_points`` (integer > 0, default 100000) may be
+changed at run time, invalid values are rejected with a reason (``<name>: <problem>``). An
+``input_topic`` that resolves (remappings applied) to the ``output_topic`` is refused at start:
+the node would process its own output forever.
 
 Recording (``bag_path`` non-empty): a new rosbag2 directory per run, never an existing one
 (:func:`geodesic_planner.io.bags.new_bag_path`: an existing non-empty ``bag_path`` gets a timestamped
@@ -43,8 +56,13 @@ times of the node's clock. Data reach the file at least every 0.5 s (see
 0.5 s. On SIGINT/SIGTERM the node takes every message already delivered to it (processing
 the backlog for up to 2 s, then recording the rest raw without processing, see :func:`_drain`),
 closes the bag (metadata written) and exits with 0. The closing log line gives the counts:
-``received N, published P, rejected R, recorded unprocessed at shutdown U`` (N = P + R + U, and
-the bag holds N inputs and P outputs).
+``received N, published P, rejected R, recorded unprocessed at shutdown U`` (N = P + R + U), and
+the per-topic counts are what the storage file holds. When the bag cannot be written (disk
+full), every failure is logged (the first at once, then at most one line per second with the
+count since the last one), counted on ``/diagnostics`` (``bag write failures``, ``bag messages
+lost``), and summarised in the closing line (``bag write failures F, not recorded: topic: n``);
+the bag then holds N - (inputs not recorded) inputs and P - (outputs not recorded) outputs,
+and ``metadata.yaml`` says so. (See :mod:`geodesic_planner.io.bags.recorder`.)
 
 Executor model: one SingleThreadedExecutor, spun by ``spin_once`` in the main thread; callbacks
 (input, recorded topics, parameter services) therefore never run concurrently and the recorder
@@ -61,10 +79,13 @@ import threading
 import time
 from typing import Any
 
+import numpy as np
+
 import rclpy
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import NameValidationException, ParameterException
-from rclpy.event_handler import QoSMessageLostInfo, QoSSubscriptionMatchedInfo, SubscriptionEventCallbacks
+from rclpy.event_handler import (QoSMessageLostInfo, QoSRequestedIncompatibleQoSInfo, QoSSubscriptionMatchedInfo,
+                                  SubscriptionEventCallbacks)
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -76,6 +97,7 @@ from trajectory_msgs.msg import JointTrajectory
 from ..io.bags import JOINT_STATE, JOINT_TRAJECTORY, BagRecorder, make_typestore, new_bag_path, to_cdr
 from ..core.errors import BagError, GeodesicPlannerError, RequestError
 from ..timing.resample import process_trajectory
+from ..timing.validate import trajectory_problems
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory
 from . import params, runtime
 from .diagnostics import NodeStatus
@@ -87,12 +109,55 @@ JOINT_STATES_TOPIC = '/joint_states'
 KNOWN_TYPES = {JOINT_STATES_TOPIC: JOINT_STATE}
 DRAIN_TIMEOUT = 2.0  # s spent at shutdown processing messages already received
 RECORD_DRAIN_TIMEOUT = 5.0  # s more at shutdown recording (without processing) the remaining ones
+#: The value bound: an output may hold OUTPUT_JOINTS x max_output_points joint values per field.
+OUTPUT_JOINTS = 16
+FAILURE_LOG_PERIOD = 1.0  # s, at most one bag write failure line per period
 
 def _qos(reliability: ReliabilityPolicy = ReliabilityPolicy.RELIABLE, *, keep_all: bool = False) -> QoSProfile:
     """Volatile QoS, depth 10; ``keep_all`` for subscriptions whose every message must be recorded."""
     history = HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST
     return QoSProfile(depth=10, history=history, reliability=reliability,
                       durability=DurabilityPolicy.VOLATILE)
+
+
+class _FailureLog:
+    """Bag write failures for people: the first one at once, then at most one line per period.
+
+    Every failure is counted; the lines in between are summed into the next one (or into the
+    one :meth:`tick` writes once the period is over). Thread-safe: the recorder reports the
+    failures of its background flushes from its own thread.
+    """
+
+    def __init__(self, node: Node, period: float = FAILURE_LOG_PERIOD) -> None:
+        self._logger = node.get_logger()
+        self._period = period
+        self._lock = threading.Lock()
+        self._last = -float('inf')
+        self._held = 0
+        self._held_text = ''
+        self.total = 0
+
+    def report(self, text: str) -> None:
+        """One failure (``text`` says what and why)."""
+        with self._lock:
+            self.total += 1
+            now = time.monotonic()
+            if now - self._last < self._period:
+                self._held += 1
+                self._held_text = text
+                return
+            self._last, held, self._held = now, self._held, 0
+        more = f' (and {held} more since the last report)' if held else ''
+        self._logger.error(f'bag write failure: {text}{more}')
+
+    def tick(self) -> None:
+        """Write the failures held back, once the period since the last line is over."""
+        with self._lock:
+            now = time.monotonic()
+            if not self._held or now - self._last < self._period:
+                return
+            self._last, held, text, self._held = now, self._held, self._held_text, 0
+        self._logger.error(f'bag write failure: {held} more since the last report, the last: {text}')
 
 
 class TrajectoryProcessorNode(Node):
@@ -115,20 +180,27 @@ class TrajectoryProcessorNode(Node):
         self.published = 0
         self.rejected = 0
         self.unprocessed = 0
+        self.too_large = 0
         self.callbacks = 0
         #: set at shutdown once DRAIN_TIMEOUT is spent: inputs are recorded, not processed
         self.record_only = False
 
         self.status = NodeStatus(self)
         self.status.set(input_publishers_matched=0, output_subscriptions_matched=0,
-                        received=0, published=0, rejected=0)
+                        received=0, published=0, rejected=0, rejected_too_large=0)
         try:
-            events = SubscriptionEventCallbacks(matched=self._on_input_matched,
-                                                message_lost=self._on_input_lost)
-            self.input_sub = self.create_subscription(
-                JointTrajectory, self.get_parameter('input_topic').value, self._on_input, _qos(keep_all=True),
-                event_callbacks=events, raw=True)
+            input_topic = self.get_parameter('input_topic').value
             output_topic = self.get_parameter('output_topic').value
+            if self.resolve_topic_name(input_topic) == self.resolve_topic_name(output_topic):
+                msg = (f'input_topic {input_topic!r} and output_topic {output_topic!r} are the same topic '
+                       f'{self.resolve_topic_name(output_topic)}: the processor would process its own output')
+                raise RequestError(msg)
+            events = SubscriptionEventCallbacks(matched=self._on_input_matched,
+                                                message_lost=self._on_input_lost,
+                                                incompatible_qos=self._on_input_incompatible)
+            self.input_sub = self.create_subscription(
+                JointTrajectory, input_topic, self._on_input, _qos(keep_all=True),
+                event_callbacks=events, raw=True)
             self.output_pub = self.create_publisher(
                 JointTrajectory, output_topic, _qos(),
                 event_callbacks=matched_logger(
@@ -144,6 +216,8 @@ class TrajectoryProcessorNode(Node):
         params.declare(self, ['record_topics'], {'record_topics': default_record})
 
         self.recorder: BagRecorder | None = None
+        self.failure_log = _FailureLog(self)
+        self._failure_timer: Timer | None = None
         self._extra_subs: dict[str, Any] = {}
         self._pending_types: list[str] = []
         self._discovery_timer: Timer | None = None
@@ -208,8 +282,11 @@ class TrajectoryProcessorNode(Node):
         for name in ('sample_period', 'velocity_scaling'):  # values at start (they may change later)
             custom[name] = repr(float(self.get_parameter(name).value))
         self.recorder = BagRecorder(path, storage=storage, topics={**topics, **extra},
-                                    typestore=self._typestore, custom_data=custom)
+                                    typestore=self._typestore, custom_data=custom,
+                                    on_error=self.failure_log.report)
         self.recorder.open()
+        self.status.set(bag_write_failures=0, bag_messages_lost=0)
+        self._failure_timer = self.create_timer(FAILURE_LOG_PERIOD, self._report_failures)
         where = path if str(path) == str(base) else f'{path} ({base} exists, not overwritten)'
         self.get_logger().info(f'recording {", ".join(self.recorder.topics)} to {where} [{storage}]')
         for topic, msgtype in extra.items():
@@ -226,13 +303,13 @@ class TrajectoryProcessorNode(Node):
         except (ImportError, AttributeError) as err:
             msg = f'cannot record {topic}: message type {msgtype} not available in Python ({err})'
             raise RequestError(msg) from err
-        # Best available: reliable with reliable publishers, best effort otherwise.
+        # Best effort matches reliable and best-effort publishers, whenever they appear.
         events = SubscriptionEventCallbacks(
             matched=functools.partial(self._log_matched, topic),
             message_lost=functools.partial(self._log_lost, topic))
         self._extra_subs[topic] = self.create_subscription(
             cls, topic, functools.partial(self._record, topic),
-            _qos(ReliabilityPolicy.BEST_AVAILABLE, keep_all=True), event_callbacks=events, raw=True)
+            _qos(ReliabilityPolicy.BEST_EFFORT, keep_all=True), event_callbacks=events, raw=True)
 
     def _discover_types(self) -> None:
         types = dict(self.get_topic_names_and_types())
@@ -259,26 +336,54 @@ class TrajectoryProcessorNode(Node):
         self.callbacks += 1
         if self.recorder is None or topic not in self.recorder.topics:
             return
+        self._write(topic, data)
+
+    def _write(self, topic: str, data: bytes) -> None:
+        """Record one message; a failure is reported (rate-limited) and counted, never raised."""
+        assert self.recorder is not None
         try:
             self.recorder.write(topic, self._now_ns(), data)
         except BagError as err:
-            self.get_logger().error(f'recording {topic} failed: {err}')
+            self.failure_log.report(str(err))
+            self._report_failures()
+
+    def _report_failures(self) -> None:
+        """Held-back failure lines to the log, failure counts to /diagnostics."""
+        self.failure_log.tick()
+        recorder = self.recorder
+        if recorder is not None:
+            self.status.set(bag_write_failures=recorder.failures,
+                            bag_messages_lost=sum(recorder.lost.values()))
 
     def close_bag(self) -> None:
-        """Finish the bag (metadata written) and log what it holds. Idempotent."""
+        """Finish the bag (metadata written) and log what it holds. Idempotent.
+
+        The closing line's counts are what the storage file holds, also after write failures
+        (then summarised in the same line) or when the bag could not be finished.
+        """
         recorder, self.recorder = self.recorder, None
         if recorder is None:
             return
+        if self._failure_timer is not None:
+            self._failure_timer.cancel()
+        state = 'bag closed'
         try:
             recorder.close()
         except BagError as err:
             self.get_logger().error(str(err))
-            return
-        counts = ', '.join(f'{t}: {n}' for t, n in recorder.counts.items())
-        self.get_logger().info(
-            f'bag closed: {recorder.path} ({sum(recorder.counts.values())} messages; {counts}); '
+            state = 'bag NOT finished (repair it)'
+        self.failure_log.tick()
+        on_disk = recorder.counts
+        counts = ', '.join(f'{t}: {n}' for t, n in on_disk.items())
+        failures = ''
+        if recorder.failures:
+            lost = ', '.join(f'{t}: {n}' for t, n in recorder.lost.items()) or 'none'
+            failures = (f'; bag write failures {recorder.failures}, not recorded: {lost} '
+                        f'(last error: {recorder.last_error})')
+        log = self.get_logger().error if state != 'bag closed' or recorder.failures else self.get_logger().info
+        log(f'{state}: {recorder.path} ({sum(on_disk.values())} messages; {counts}); '
             f'received {self.received}, published {self.published}, rejected {self.rejected}, '
-            f'recorded unprocessed at shutdown {self.unprocessed}')
+            f'recorded unprocessed at shutdown {self.unprocessed}{failures}')
 
     # ------------------------------------------------------------------ processing
     def _log_matched(self, topic: str, status: QoSSubscriptionMatchedInfo) -> None:
@@ -299,6 +404,11 @@ class TrajectoryProcessorNode(Node):
     def _on_input_lost(self, status: QoSMessageLostInfo) -> None:
         self._log_lost(f'input {self.input_topic}', status)
 
+    def _on_input_incompatible(self, status: QoSRequestedIncompatibleQoSInfo) -> None:
+        self.get_logger().warning(
+            f'input {self.input_topic}: {status.total_count_change} publisher(s) with incompatible QoS '
+            f'(policy id {status.last_policy_kind}; the input is reliable): their messages are not received')
+
     def _on_input(self, raw: bytes) -> None:
         self.received += 1
         self._record(self.input_topic, raw)
@@ -310,31 +420,59 @@ class TrajectoryProcessorNode(Node):
         except Exception as err:  # noqa: BLE001 - boundary: one bad input never ends the node
             self.rejected += 1
             self.get_logger().error(f'rejected trajectory: internal error: {type(err).__name__}: {err}')
-        self.status.set(received=self.received, published=self.published, rejected=self.rejected)
+        self.status.set(received=self.received, published=self.published, rejected=self.rejected,
+                        rejected_too_large=self.too_large)
+
+    def _reject(self, reason: str) -> None:
+        self.rejected += 1
+        self.get_logger().error(f'rejected trajectory: {reason}')
+
+    def _too_large(self, t: np.ndarray, dof: int, f: float, dt: float) -> str | None:
+        """Why the output would exceed max_output_points (None: it fits); nothing allocated."""
+        limit = int(self.get_parameter('max_output_points').value)
+        span = float(t[-1] - t[0]) / f  # s, slowed down (inf on overflow)
+        # the bound resample.sample_times enforces: floor(span / dt) + 2 samples (inf if dt is tiny)
+        points = span / dt + 2.0
+        if not points <= limit:
+            return (f'output too large: {span:.6g} s at sample_period {dt:g} s (velocity_scaling {f:g}) '
+                    f'would be up to {points:.6g} points, max_output_points is {limit}')
+        if points * dof > OUTPUT_JOINTS * limit:
+            return (f'output too large: {points:.0f} points x {dof} joints = {points * dof:.6g} values per '
+                    f'field, more than {OUTPUT_JOINTS} x max_output_points = {OUTPUT_JOINTS * limit}')
+        return None
 
     def _process(self, raw: bytes) -> None:
         """Decode, validate, resample, publish and record one input (already recorded raw)."""
         try:
             msg = deserialize_message(raw, JointTrajectory)
         except Exception as err:  # noqa: BLE001  (rmw deserialisation errors are not typed)
-            self.rejected += 1
-            self.get_logger().error(f'rejected trajectory: cannot deserialize {len(raw)} bytes: {err}')
+            self._reject(f'cannot deserialize {len(raw)} bytes: {err}')
             return
         problems = validate_joint_trajectory(msg)
         if problems:
-            self.rejected += 1
             more = f' (+{len(problems) - 5} more)' if len(problems) > 5 else ''
-            self.get_logger().error(f'rejected trajectory: {"; ".join(problems[:5])}{more}')
+            self._reject(f'{"; ".join(problems[:5])}{more}')
             return
         f = float(self.get_parameter('velocity_scaling').value)
         dt = float(self.get_parameter('sample_period').value)
         arrays = joint_trajectory_to_arrays(msg)
+        too_large = self._too_large(arrays.t, len(arrays.joint_names), f, dt)
+        if too_large is not None:
+            self.too_large += 1
+            self._reject(too_large)
+            return
         try:
-            t, q, dq, ddq = process_trajectory(arrays.t, arrays.positions, arrays.velocities,
-                                               arrays.accelerations, sample_period=dt, velocity_scaling=f)
+            with np.errstate(over='ignore', invalid='ignore'):  # non-finite results are refused below
+                t, q, dq, ddq = process_trajectory(
+                    arrays.t, arrays.positions, arrays.velocities, arrays.accelerations, sample_period=dt,
+                    velocity_scaling=f, max_samples=int(self.get_parameter('max_output_points').value))
         except GeodesicPlannerError as err:
-            self.rejected += 1
-            self.get_logger().error(f'rejected trajectory: {err}')
+            self._reject(str(err))
+            return
+        problems = trajectory_problems(arrays.joint_names, t, q, dq, ddq)  # the input's validator
+        if problems:
+            more = f' (+{len(problems) - 5} more)' if len(problems) > 5 else ''
+            self._reject(f'output would be invalid: {"; ".join(problems[:5])}{more}')
             return
         out = arrays_to_joint_trajectory(arrays.joint_names, t, q, dq, ddq, frame_id=msg.header.frame_id)
         out.header.stamp = msg.header.stamp
@@ -342,10 +480,7 @@ class TrajectoryProcessorNode(Node):
         self.output_pub.publish(out)
         self.published += 1
         if self.recorder is not None and self.output_topic in self.recorder.topics:
-            try:
-                self.recorder.write(self.output_topic, self._now_ns(), to_cdr(out, JOINT_TRAJECTORY, self._typestore))
-            except BagError as err:
-                self.get_logger().error(f'recording {self.output_topic} failed: {err}')
+            self._write(self.output_topic, to_cdr(out, JOINT_TRAJECTORY, self._typestore))
         span_in = arrays.t[-1] - arrays.t[0]
         self.get_logger().info(
             f'received trajectory: {arrays.t.size} points, {span_in:.3g} s -> published {t.size} points, '
@@ -419,6 +554,9 @@ def _run(stop: threading.Event) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (GeodesicPlannerError, ParameterException) as err:
+        rclpy.logging.get_logger(NODE_NAME).error(f'cannot start: {err}')
+        rc = 1
+    except OSError as err:  # the bag path (permissions, ...) when not already a BagError
         rclpy.logging.get_logger(NODE_NAME).error(f'cannot start: {err}')
         rc = 1
     finally:

@@ -4,6 +4,13 @@
 :class:`TrajectoryRecord` whose ``problems`` come from the one trajectory validator
 (:func:`geodesic_planner.timing.validate.trajectory_problems`); :func:`bag_info` counts topics and
 summarises each trajectory. Readers use a fresh Jazzy typestore for bags without definitions.
+
+A record whose bytes do not decode as its type (a corrupt or hostile recording) never fails the
+whole bag: it is skipped and reported as an :class:`UndecodableRecord` (``bag_info(...).undecodable``,
+``read_trajectories(..., skipped=[])``). rosbags' decoders raise whatever the malformed bytes
+lead to (``struct.error``, ``IndexError``, ``UnicodeDecodeError``, ...), so any exception out of
+decoding one record means "undecodable"; the same holds for reading a corrupt storage file, which
+becomes a :class:`BagError` naming the bag.
 """
 from __future__ import annotations
 
@@ -32,6 +39,7 @@ __all__ = [
     'TopicSummary',
     'TrajectoryRecord',
     'TrajectorySummary',
+    'UndecodableRecord',
     'bag_info',
     'read_trajectories',
     'summarize_trajectory',
@@ -71,6 +79,29 @@ class TrajectoryRecord:
     def duration(self) -> float:
         """time_from_start of the last point minus the first, s (0 for < 2 points)."""
         return float(self.t[-1] - self.t[0]) if self.t.size > 1 else 0.0
+
+
+@dataclass(frozen=True)
+class UndecodableRecord:
+    """A recorded message that could not be decoded as its type (skipped by the readers).
+
+    Attributes:
+        topic: topic name.
+        msgtype: the topic's message type.
+        stamp_ns: bag (receive) time, ns since the epoch.
+        size: bytes of the record.
+        reason: the decoder's error.
+    """
+
+    topic: str
+    msgtype: str
+    stamp_ns: int
+    size: int
+    reason: str
+
+    def __str__(self) -> str:
+        """One line: where and why."""
+        return f'{self.topic} at {self.stamp_ns} ns ({self.size} bytes, {self.msgtype}): {self.reason}'
 
 
 def _rows(points: list[Any], name: str, dof: int) -> tuple[list[list[float]], np.ndarray | None]:
@@ -152,8 +183,8 @@ class OpenBag:
         try:
             reader = AnyReader([self.path], default_typestore=make_typestore())
             reader.open()
-        except (AnyReaderError, ReaderError, TypesysError, OSError, KeyError, ValueError) as err:
-            msg = f'cannot read bag {self.path}: {err}'
+        except Exception as err:  # a corrupt file makes rosbags raise anything (re-raised as BagError)
+            msg = f'cannot read bag {self.path}: {_reason(err)}'
             raise BagError(msg) from err
         self.reader = reader
         return reader
@@ -161,6 +192,20 @@ class OpenBag:
     def __exit__(self, *exc: object) -> None:
         if self.reader is not None:
             self.reader.close()
+
+
+def _reason(err: BaseException) -> str:
+    if isinstance(err, (AnyReaderError, ReaderError, TypesysError)):
+        return str(err)
+    return f'{type(err).__name__}: {err}'
+
+
+def decode(reader: AnyReader, conn: Connection, stamp: int, data: bytes) -> Any | UndecodableRecord:  # noqa: ANN401 any message type
+    """The message of one record, or what went wrong when its bytes do not decode."""
+    try:
+        return reader.deserialize(data, conn.msgtype)
+    except Exception as err:  # noqa: BLE001 - malformed bytes make rosbags raise anything
+        return UndecodableRecord(conn.topic, conn.msgtype, int(stamp), len(data), _reason(err))
 
 
 def messages(reader: AnyReader, connections: list[Connection], path: Path) -> Iterator[tuple[Connection, int, bytes]]:
@@ -173,17 +218,19 @@ def messages(reader: AnyReader, connections: list[Connection], path: Path) -> It
         return
     try:
         yield from reader.messages(connections=connections)
-    except (AnyReaderError, ReaderError, OSError) as err:
-        msg = f'cannot read messages of bag {path}: {err}'
+    except Exception as err:  # a corrupt storage file makes rosbags raise anything (re-raised)
+        msg = f'cannot read messages of bag {path}: {_reason(err)}; try `geodesic-bag repair {path}`'
         raise BagError(msg) from err
 
 
-def read_trajectories(bag_path: str | os.PathLike[str], topic: str | None = None) -> list[TrajectoryRecord]:
+def read_trajectories(bag_path: str | os.PathLike[str], topic: str | None = None, *,
+                      skipped: list[UndecodableRecord] | None = None) -> list[TrajectoryRecord]:
     """Every JointTrajectory in a bag, in bag-time order, as arrays.
 
     Args:
         bag_path: rosbag2 directory (or its storage file).
         topic: only this topic (default: every JointTrajectory topic).
+        skipped: records that could not be decoded are appended here (they are skipped either way).
 
     Returns:
         Records sorted by ``stamp_ns``; invalid messages are included with ``problems`` set.
@@ -205,13 +252,24 @@ def read_trajectories(bag_path: str | os.PathLike[str], topic: str | None = None
                 raise BagError(msg)
         records = []
         for conn, stamp, data in messages(reader, conns, src.path):
-            try:
-                msg_obj = reader.deserialize(data, conn.msgtype)
-            except AnyReaderError as err:
-                msg = f'bag {src.path}: undecodable {conn.msgtype} on {conn.topic} at {stamp} ns: {err}'
-                raise BagError(msg) from err
-            records.append(trajectory_record(conn.topic, stamp, msg_obj))
+            rec = _trajectory_or_undecodable(reader, conn, stamp, data)
+            if isinstance(rec, UndecodableRecord):
+                if skipped is not None:
+                    skipped.append(rec)
+                continue
+            records.append(rec)
     return records
+
+
+def _trajectory_or_undecodable(reader: AnyReader, conn: Connection, stamp: int,
+                               data: bytes) -> TrajectoryRecord | UndecodableRecord:
+    msg_obj = decode(reader, conn, stamp, data)
+    if isinstance(msg_obj, UndecodableRecord):
+        return msg_obj
+    try:
+        return trajectory_record(conn.topic, stamp, msg_obj)
+    except (TypeError, ValueError, OverflowError) as err:  # decoded, but fields of the wrong kind
+        return UndecodableRecord(conn.topic, conn.msgtype, int(stamp), len(data), _reason(err))
 
 
 @dataclass(frozen=True)
@@ -259,6 +317,7 @@ class BagInfo:
     topics: list[TopicSummary] = field(default_factory=list)
     trajectories: list[TrajectorySummary] = field(default_factory=list)
     custom_data: dict[str, str] = field(default_factory=dict)
+    undecodable: list[UndecodableRecord] = field(default_factory=list)
 
     @property
     def duration(self) -> float:
@@ -286,14 +345,25 @@ def summarize_trajectory(rec: TrajectoryRecord, index: int) -> TrajectorySummary
 def bag_info(path: str | os.PathLike[str]) -> BagInfo:
     """Topics, counts, times and a summary of every JointTrajectory of a bag.
 
+    Undecodable JointTrajectory records are counted with their topic and listed in
+    ``undecodable`` (not summarised).
+
     Raises:
         BagError: missing or unreadable bag.
     """
     src = OpenBag(path)
-    meta = yaml.safe_load((src.path / 'metadata.yaml').read_text()) or {}
-    bagfile = meta.get('rosbag2_bagfile_information') or {}
+    try:
+        meta = yaml.safe_load((src.path / 'metadata.yaml').read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
+        msg = f'cannot read {src.path / "metadata.yaml"}: {err}'
+        raise BagError(msg) from err
+    meta = meta if isinstance(meta, dict) else {}
+    bagfile = meta.get('rosbag2_bagfile_information')
+    bagfile = bagfile if isinstance(bagfile, dict) else {}
     storage = str(bagfile.get('storage_identifier', '?'))
-    custom = {str(k): str(v) for k, v in (bagfile.get('custom_data') or {}).items()}
+    custom_raw = bagfile.get('custom_data')
+    custom = {str(k): str(v) for k, v in custom_raw.items()} if isinstance(custom_raw, dict) else {}
+    undecodable: list[UndecodableRecord] = []
     with src as reader:
         first: dict[str, int] = {}
         last: dict[str, int] = {}
@@ -310,11 +380,10 @@ def bag_info(path: str | os.PathLike[str]) -> BagInfo:
             last[conn.topic] = max(stamp, last.get(conn.topic, stamp))
             first[conn.topic] = min(stamp, first[conn.topic])
             if conn.msgtype == JOINT_TRAJECTORY:
-                try:
-                    rec = trajectory_record(conn.topic, stamp, reader.deserialize(data, conn.msgtype))
-                except AnyReaderError as err:
-                    msg = f'bag {src.path}: undecodable message on {conn.topic} at {stamp} ns: {err}'
-                    raise BagError(msg) from err
+                rec = _trajectory_or_undecodable(reader, conn, stamp, data)
+                if isinstance(rec, UndecodableRecord):
+                    undecodable.append(rec)
+                    continue
                 k = per_topic_index.get(conn.topic, 0)
                 per_topic_index[conn.topic] = k + 1
                 trajectories.append(summarize_trajectory(rec, k))
@@ -324,5 +393,5 @@ def bag_info(path: str | os.PathLike[str]) -> BagInfo:
     return BagInfo(
         path=src.path, storage=storage, message_count=total,
         start_ns=min(first.values()) if first else None, end_ns=max(last.values()) if last else None,
-        topics=topics, trajectories=trajectories, custom_data=custom,
+        topics=topics, trajectories=trajectories, custom_data=custom, undecodable=undecodable,
     )

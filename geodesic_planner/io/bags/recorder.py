@@ -10,14 +10,25 @@ SQLite transaction is committed (see :mod:`.storage`). After a SIGKILL, at most 
 the last ``flush_period`` seconds are missing; the bag lacks its index and ``metadata.yaml`` and
 :func:`~geodesic_planner.io.bags.repair.repair` (``geodesic-bag repair BAG``) restores both.
 SIGINT/SIGTERM handled by the caller's ``close()`` lose nothing.
+
+Write failures (a full disk). A message is counted once the storage holds it and it was not
+lost since: ``counts`` never include a message SQLite rolled back or one refused while the
+storage could not be written, so after ``close()`` the counts, the closing summary and
+``metadata.yaml`` are what the storage file holds. When a flush fails, what the storage could
+keep (MCAP bytes in memory, an open SQLite transaction) is retried every half flush period and
+new messages are refused (:class:`BagError`, counted in :attr:`BagRecorder.lost`) until a flush
+succeeds again; what SQLite rolled back is counted as lost at once. Every failure is either
+raised to the caller (``write``) or, when no caller is there (background flush), passed to the
+``on_error`` callback; :attr:`BagRecorder.failures` counts both.
 """
 from __future__ import annotations
 
 import math
+import os
 import sqlite3
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from datetime import datetime, UTC
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -49,11 +60,12 @@ def new_bag_path(path: str | os.PathLike[str], *, prefix: str = 'bag', now: date
     * ``path`` does not exist, or is an empty directory: ``path`` itself;
     * ``path`` is a bag (has ``metadata.yaml`` or a storage file): a sibling
       ``<path>_<UTC timestamp>``;
-    * ``path`` is another non-empty directory: ``<path>/<prefix>_<UTC timestamp>``.
+    * ``path`` is another non-empty directory, or a mount point (empty or not: it cannot be
+      replaced by a new directory): ``<path>/<prefix>_<UTC timestamp>``.
     A numeric suffix ``_2``, ``_3``... makes the name unique.
 
     Raises:
-        BagError: ``path`` is a file.
+        BagError: ``path`` is a file, or a directory that cannot be listed.
     """
     base = Path(path)
     if not base.exists():
@@ -61,7 +73,7 @@ def new_bag_path(path: str | os.PathLike[str], *, prefix: str = 'bag', now: date
     if not base.is_dir():
         msg = f'bag path is an existing file, not a directory: {base}'
         raise BagError(msg)
-    if not any(base.iterdir()):
+    if not os.path.ismount(base) and _is_empty_dir(base):
         return base
     stamp = (now or datetime.now(UTC)).strftime('%Y%m%dT%H%M%SZ')
     candidate = base.parent / f'{base.name}_{stamp}' if _looks_like_bag(base) else base / f'{prefix}_{stamp}'
@@ -70,6 +82,14 @@ def new_bag_path(path: str | os.PathLike[str], *, prefix: str = 'bag', now: date
         unique = candidate.with_name(f'{candidate.name}_{k}')
         k += 1
     return unique
+
+
+def _is_empty_dir(path: Path) -> bool:
+    try:
+        return not any(path.iterdir())
+    except OSError as err:
+        msg = f'cannot use {path} as bag path: {err.strerror or err}'
+        raise BagError(msg) from err
 
 
 def _looks_like_bag(path: Path) -> bool:
@@ -98,6 +118,8 @@ class BagRecorder:
         typestore: rosbags typestore (default: a fresh ROS 2 Jazzy store).
         custom_data: string key/values stored in ``metadata.yaml`` (``custom_data``), e.g. the
             recording node's parameters.
+        on_error: called with a one-line reason for every failure no caller sees (a background
+            flush that failed), possibly from the flush thread.
 
     Raises:
         BagError: unknown storage, non-positive flush period, non-string custom data.
@@ -115,6 +137,7 @@ class BagRecorder:
         flush_period: float | None = 0.5,
         typestore: Typestore | None = None,
         custom_data: Mapping[str, str] | None = None,
+        on_error: Callable[[str], None] | None = None,
     ) -> None:
         if storage not in STORAGES:
             msg = f'unknown storage {storage!r}; expected one of {", ".join(STORAGES)}'
@@ -135,7 +158,13 @@ class BagRecorder:
         self._typestore = typestore
         self._writer: FlushableWriter | None = None
         self._connections: dict[str, Connection] = {}
-        self._counts: dict[str, int] = {}
+        self._counts: dict[str, int] = {}  # in the storage file (flushed)
+        self._pending: dict[str, int] = {}  # handed to the storage since the last flush
+        self._lost: dict[str, int] = {}  # never reached the file
+        self._failures = 0
+        self._last_error: str | None = None
+        self._failing = False  # a flush failed and the storage still holds its data
+        self._on_error = on_error
         self._closed = False
         self._lock = threading.RLock()
         self._dirty = False
@@ -156,9 +185,33 @@ class BagRecorder:
 
     @property
     def counts(self) -> dict[str, int]:
-        """Messages written per topic so far."""
+        """Messages written per topic and not lost (after ``close()``: what the file holds)."""
+        with self._lock:
+            return {t: n + self._pending[t] for t, n in self._counts.items()}
+
+    @property
+    def flushed_counts(self) -> dict[str, int]:
+        """Messages per topic already in the storage file (what survives a kill)."""
         with self._lock:
             return dict(self._counts)
+
+    @property
+    def lost(self) -> dict[str, int]:
+        """Messages per topic given to :meth:`write` that never reached the file (write failures)."""
+        with self._lock:
+            return {t: n for t, n in self._lost.items() if n}
+
+    @property
+    def failures(self) -> int:
+        """Failed writes and flushes so far."""
+        with self._lock:
+            return self._failures
+
+    @property
+    def last_error(self) -> str | None:
+        """Reason of the last failure (None: none)."""
+        with self._lock:
+            return self._last_error
 
     @property
     def is_open(self) -> bool:
@@ -183,8 +236,8 @@ class BagRecorder:
                 msg = f'recorder for {self._path} was already opened'
                 raise BagError(msg)
             if self._path.exists():
-                if self._path.is_dir() and not any(self._path.iterdir()):
-                    self._path.rmdir()  # empty directory: use it (rosbags creates it anew)
+                if self._path.is_dir() and _is_empty_dir(self._path):
+                    self._replace_empty_dir()
                 else:
                     msg = f'bag directory exists: {self._path} (a recording never overwrites; choose a new path)'
                     raise BagError(msg)
@@ -202,7 +255,7 @@ class BagRecorder:
             try:
                 for topic, msgtype in self._initial_topics.items():
                     self.add_topic(topic, msgtype)
-                self._flush_locked()
+                self._flush_locked(writer)
             except BaseException:
                 self._abort_locked()
                 raise
@@ -210,6 +263,16 @@ class BagRecorder:
             self._thread = threading.Thread(target=self._flusher, name='bag-flusher', daemon=True)
             self._thread.start()
         return self
+
+    def _replace_empty_dir(self) -> None:
+        """Remove the empty bag directory (rosbags creates it anew), or explain why it cannot be."""
+        try:
+            self._path.rmdir()
+        except OSError as err:
+            why = 'it is a mount point' if os.path.ismount(self._path) else (err.strerror or str(err))
+            msg = (f'cannot record into the empty directory {self._path}: {why} (a bag is created as a '
+                   f'new directory; give a path inside it, e.g. {self._path / "bag"})')
+            raise BagError(msg) from err
 
     def add_topic(self, topic: str, msgtype: str, qos: Qos | None = None) -> None:
         """Register a topic (its type definition, hash and offered QoS go into the bag).
@@ -233,11 +296,13 @@ class BagRecorder:
             try:
                 conn = writer.add_connection(topic, msgtype, typestore=self._typestore,
                                              offered_qos_profiles=[profile])
-            except WriterError as err:
+            except (WriterError, OSError, sqlite3.Error) as err:
                 msg = f'cannot add topic {topic} to {self._path}: {err}'
                 raise BagError(msg) from err
             self._connections[topic] = conn
             self._counts[topic] = 0
+            self._pending[topic] = 0
+            self._lost[topic] = 0
             self._dirty = True
 
     def _default_qos(self, topic: str) -> Qos:
@@ -256,7 +321,9 @@ class BagRecorder:
             data: CDR bytes exactly as on the wire (``raw=True`` subscription or :func:`to_cdr`).
 
         Raises:
-            BagError: recorder not open, topic not registered, negative stamp.
+            BagError: recorder not open, topic not registered, negative stamp; or the message
+                was not written (storage failure, or an earlier flush still failing): it is
+                counted in :attr:`lost`.
         """
         with self._lock:
             writer = self._require_open()
@@ -269,33 +336,77 @@ class BagRecorder:
             if stamp < 0:
                 msg = f'negative timestamp {stamp} ns'
                 raise BagError(msg)
+            if self._failing and time.monotonic() - self._last_flush >= self._retry_period():
+                self._try_flush_locked()  # an earlier flush failed: retry before refusing
+            if self._failing:
+                self._lost[topic] += 1
+                self._failures += 1
+                msg = (f'cannot write to {self._path}: message on {topic} dropped, the storage still '
+                       f'cannot be written ({self._last_error})')
+                raise BagError(msg)
             try:
                 writer.write(conn, stamp, bytes(data))
-            except (WriterError, OSError) as err:
-                msg = f'cannot write to {self._path}: {err}'
+            except (WriterError, OSError, sqlite3.Error) as err:
+                self._lost[topic] += 1
+                self._failed_locked(writer, err)
+                msg = f'cannot write to {self._path}: message on {topic} dropped: {err}'
                 raise BagError(msg) from err
-            self._counts[topic] += 1
+            self._pending[topic] += 1
             self._dirty = True
             if self._flush_period is not None and time.monotonic() - self._last_flush >= self._flush_period:
-                self._flush_locked()
+                self._try_flush_locked()
 
     def flush(self) -> None:
-        """Push everything written so far to the storage file (no-op when closed)."""
+        """Push everything written so far to the storage file (no-op when closed).
+
+        Raises:
+            BagError: the storage file could not be written (see the module docstring).
+        """
         with self._lock:
             if self._writer is not None:
-                self._flush_locked()
+                self._flush_locked(self._writer)
 
-    def _flush_locked(self) -> None:
-        writer = self._writer
-        assert writer is not None
-        if self._dirty:
+    def _retry_period(self) -> float:
+        return self._flush_period / 2.0 if self._flush_period is not None else 0.25
+
+    def _failed_locked(self, writer: FlushableWriter, err: BaseException) -> str:
+        """Account for a failed storage operation; returns what happened to the pending messages."""
+        self._failures += 1
+        self._last_error = str(err) or type(err).__name__
+        waiting = sum(self._pending.values())
+        if writer.has_pending():
+            self._failing = waiting > 0 or self._failing
+            return f'{waiting} message(s) kept for the next attempt' if waiting else 'no message lost'
+        for topic, n in self._pending.items():  # rolled back (SQLite) or dropped
+            self._lost[topic] += n
+            self._pending[topic] = 0
+        self._failing = False
+        return f'{waiting} message(s) lost' if waiting else 'no message lost'
+
+    def _flush_locked(self, writer: FlushableWriter) -> None:
+        if self._dirty or self._failing:
             try:
                 writer.flush()
-            except (OSError, sqlite3.Error) as err:
-                msg = f'cannot flush {self._path}: {err}'
+            except (OSError, sqlite3.Error, WriterError) as err:
+                self._last_flush = time.monotonic()
+                outcome = self._failed_locked(writer, err)
+                msg = f'cannot write to {self._path}: {err} ({outcome})'
                 raise BagError(msg) from err
+            for topic, n in self._pending.items():
+                self._counts[topic] += n
+                self._pending[topic] = 0
             self._dirty = False
+            self._failing = False
         self._last_flush = time.monotonic()
+
+    def _try_flush_locked(self) -> None:
+        """Flush where no caller sees a failure: it goes to ``on_error``."""
+        assert self._writer is not None
+        try:
+            self._flush_locked(self._writer)
+        except BagError as err:
+            if self._on_error is not None:
+                self._on_error(str(err))
 
     def _flusher(self) -> None:
         period = self._flush_period
@@ -304,17 +415,18 @@ class BagRecorder:
             with self._lock:
                 if self._writer is None:
                     return
-                if self._dirty and time.monotonic() - self._last_flush >= period / 2.0:
-                    try:
-                        self._flush_locked()
-                    except BagError:
-                        return
+                if (self._dirty or self._failing) and time.monotonic() - self._last_flush >= period / 2.0:
+                    self._try_flush_locked()
 
     def close(self) -> None:
         """Finish the bag: storage index/summary and ``metadata.yaml``. Idempotent.
 
+        The messages still pending are flushed first; ``metadata.yaml`` then gets the counts of
+        what the storage file holds (:attr:`counts`), also after write failures.
+
         Raises:
-            BagError: the storage could not be finalised (the bag can still be repaired).
+            BagError: the storage could not be finalised (the bag can still be repaired; what
+                the file holds is in :attr:`counts`, what never reached it in :attr:`lost`).
         """
         self._stop.set()
         thread, self._thread = self._thread, None
@@ -325,10 +437,26 @@ class BagRecorder:
             self._closed = True
             if writer is None:
                 return
+            repair_hint = f'run `geodesic-bag repair {self._path}`'
+            try:
+                self._flush_locked(writer)
+            except BagError as err:
+                for topic, n in self._pending.items():  # what the last flush could not write is lost
+                    self._lost[topic] += n
+                    self._pending[topic] = 0
+                writer.abort()
+                msg = f'cannot finish bag {self._path}: {err}; {repair_hint}'
+                raise BagError(msg) from err
+            for topic, conn in self._connections.items():
+                writer.counts[conn.id] = self._counts[topic]  # metadata.yaml: what the file holds
             try:
                 writer.close()
             except (WriterError, OSError, sqlite3.Error) as err:
-                msg = f'cannot finish bag {self._path}: {err}; run `geodesic-bag repair {self._path}`'
+                self._failures += 1
+                self._last_error = str(err)
+                if writer.storage is not None:
+                    writer.abort()
+                msg = f'cannot finish bag {self._path}: {err}; {repair_hint}'
                 raise BagError(msg) from err
 
     def _abort_locked(self) -> None:

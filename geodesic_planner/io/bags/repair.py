@@ -3,7 +3,12 @@
 The storage file is scanned for every complete record and rewritten with a full index and
 ``metadata.yaml``: MCAP with the ``mcap`` package's stream reader (schemas, channels, messages of
 every intact chunk; a truncated record ends the scan, a corrupt chunk is skipped), SQLite through
-its committed rows.
+its committed rows (read in order up to the first unreadable page; rows with values of the
+wrong kind skipped).
+
+A storage file that is not a bag at all (garbage bytes, a truncated SQLite header, a missing
+table) gives a :class:`BagError` naming the cause, never another exception; topics whose
+message definition is unusable are left out with their messages, and the report says so.
 """
 from __future__ import annotations
 
@@ -30,6 +35,7 @@ from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typest
 from ...core.errors import BagError
 from .cdr import make_typestore, parse_qos_text
 from .reader import OpenBag, bag_info
+from .reader import messages as messages_of
 from .recorder import PLUGINS
 
 if TYPE_CHECKING:
@@ -177,39 +183,73 @@ def _scan_mcap(path: Path) -> tuple[dict[int, _Recovered], list[tuple[int, int, 
     return found.channels, found.messages, found.skipped
 
 
+_UINT64 = 1 << 64
+
+
+def _sqlite_rows(conn: sqlite3.Connection, query: str) -> tuple[list[Any], bool]:
+    """Rows of ``query`` read one by one up to the first error; (rows, True if it stopped early)."""
+    rows: list[Any] = []
+    try:
+        for row in conn.execute(query):
+            rows.append(row)
+    except sqlite3.Error:
+        return rows, True
+    return rows, False
+
+
+def _text(value: object) -> str:
+    if isinstance(value, bytes):
+        return value.decode('utf-8', 'replace')
+    return '' if value is None else str(value)
+
+
 def _scan_sqlite(path: Path) -> tuple[dict[int, _Recovered], list[tuple[int, int, bytes]], int]:
+    """Committed topics, definitions and messages of a SQLite storage file.
+
+    Returns:
+        (channels by topic id, messages (topic id, ns, bytes), rows skipped or unread).
+
+    Raises:
+        BagError: not a SQLite database, or no readable ``topics`` / ``messages`` table.
+    """
     try:
         conn = sqlite3.connect(f'file:{path}', uri=True)  # rolls back an interrupted transaction
-        try:
-            cur = conn.execute('SELECT * FROM topics')
-            cols = [d[0] for d in cur.description]
-            topics = [dict(zip(cols, row)) for row in cur.fetchall()]
-            defs: dict[str, tuple[str, str]] = {}
-            try:
-                for ttype, enc, text in conn.execute(
-                        'SELECT topic_type, encoding, encoded_message_definition FROM message_definitions'):
-                    defs[ttype] = (enc, text)
-            except sqlite3.Error:
-                pass
-            rows = conn.execute('SELECT topic_id, timestamp, data FROM messages ORDER BY id').fetchall()
-        finally:
-            conn.close()
     except sqlite3.Error as err:
         msg = f'cannot read SQLite storage {path}: {err}'
         raise BagError(msg) from err
+    try:
+        try:
+            cur = conn.execute('SELECT id, name, type, offered_qos_profiles FROM topics')
+            topics = cur.fetchall()
+            hashes = dict(_sqlite_rows(conn, 'SELECT id, type_description_hash FROM topics')[0])
+            conn.execute('SELECT topic_id, timestamp, data FROM messages LIMIT 0').fetchall()
+        except sqlite3.Error as err:
+            msg = f'cannot read SQLite storage {path}: {err} (not a rosbag2 database, or damaged)'
+            raise BagError(msg) from err
+        def_rows, _ = _sqlite_rows(
+            conn, 'SELECT topic_type, encoding, encoded_message_definition FROM message_definitions')
+        rows, stopped = _sqlite_rows(conn, 'SELECT topic_id, timestamp, data FROM messages ORDER BY id')
+        if stopped and not rows:  # the ordered scan needs pages the plain one may not
+            rows, stopped = _sqlite_rows(conn, 'SELECT topic_id, timestamp, data FROM messages')
+    finally:
+        conn.close()
+    defs = {_text(ttype): (_text(enc), _text(text)) for ttype, enc, text in def_rows}
     channels = {}
-    for t in topics:
-        enc, text = defs.get(t['type'], ('', ''))
-        channels[int(t['id'])] = _Recovered(
-            t['name'], t['type'], text, enc, parse_qos_text(t.get('offered_qos_profiles')),
-            str(t.get('type_description_hash') or ''))
-    return channels, [(int(a), int(b), bytes(c)) for a, b, c in rows], 0
+    for tid, name, ttype, qos in topics:
+        if not isinstance(tid, int) or not name or not ttype:
+            continue
+        enc, text = defs.get(_text(ttype), ('', ''))
+        channels[tid] = _Recovered(_text(name), _text(ttype), text, enc, parse_qos_text(_text(qos)),
+                                   _text(hashes.get(tid)))
+    messages = [(a, b, bytes(c)) for a, b, c in rows
+                if isinstance(a, int) and isinstance(b, int) and 0 <= b < _UINT64 and isinstance(c, bytes)]
+    return channels, messages, len(rows) - len(messages) + int(stopped)
 
 
 def _bag_is_readable(path: Path) -> bool:
     try:
         with OpenBag(path) as reader:
-            for _ in reader.messages():
+            for _ in messages_of(reader, list(reader.connections), path):
                 pass
     except BagError:
         return False
@@ -225,7 +265,8 @@ def repair(path: str | os.PathLike[str]) -> RepairReport:
     ``<name>.damaged``. A bag that already reads fine is left untouched.
 
     Raises:
-        BagError: not a bag directory, no storage file, unknown message definitions.
+        BagError: not a bag directory, no storage file, a storage file that cannot be read at
+            all (not MCAP / SQLite, no topics table), the new bag cannot be written.
     """
     bag = Path(path)
     if not bag.is_dir():
@@ -257,22 +298,13 @@ def repair(path: str | os.PathLike[str]) -> RepairReport:
         writer.open()
         conns: dict[int, Connection] = {}
         store = make_typestore()
+        left_out: list[str] = []
         for cid, ch in channels.items():
-            kwargs: dict[str, Any] = {}
-            if ch.msgdef and ch.msgdef_format in ('ros2msg', ''):
-                ts = get_typestore(Stores.EMPTY)
-                try:
-                    ts.register(get_types_from_msg(ch.msgdef, ch.msgtype))
-                    kwargs = {'msgdef': ch.msgdef, 'rihs01': ch.digest or ts.hash_rihs01(ch.msgtype)}
-                except (TypesysError, KeyError, ValueError):
-                    kwargs = {}
-            if not kwargs:
-                if ch.msgtype not in store.fielddefs:
-                    writer.abort()
-                    msg = f'cannot repair {bag}: no usable definition of {ch.msgtype} (topic {ch.topic})'
-                    raise BagError(msg)
-                kwargs = {'typestore': store}
-            conns[cid] = writer.add_connection(ch.topic, ch.msgtype, offered_qos_profiles=ch.qos, **kwargs)
+            conn = _add_connection(writer, ch, store)
+            if conn is None:
+                left_out.append(f'{ch.topic} ({ch.msgtype})')
+                continue
+            conns[cid] = conn
             counts.setdefault(ch.topic, 0)
         lost = 0
         for cid, stamp, data in messages:
@@ -294,14 +326,37 @@ def repair(path: str | os.PathLike[str]) -> RepairReport:
             (bag / 'metadata.yaml').replace(bag / 'metadata.yaml.damaged')
         new_file.replace(bag / new_file.name)
         (tmp_bag / 'metadata.yaml').replace(bag / 'metadata.yaml')
-    except (WriterError, OSError) as err:
+    except (WriterError, OSError, sqlite3.Error, struct.error) as err:
         msg = f'cannot repair {bag}: {err}'
         raise BagError(msg) from err
     finally:
         shutil.rmtree(tmp_parent, ignore_errors=True)
     note = f'recovered {sum(counts.values())} messages on {len(counts)} topics'
     if skipped:
-        note += f'; {skipped} corrupt chunks skipped'
+        what = 'corrupt chunks' if storage == 'mcap' else 'unreadable rows'
+        note += f'; {skipped} {what} skipped'
+    if left_out:
+        note += f'; left out for want of a usable message definition: {", ".join(left_out)}'
     if lost:
-        note += f'; {lost} messages without a channel dropped'
+        note += f'; {lost} messages without a usable channel dropped'
     return RepairReport(bag, True, storage, counts, damaged, note)
+
+
+def _add_connection(writer: Writer, ch: _Recovered, store: Any) -> Connection | None:  # noqa: ANN401 rosbags Typestore
+    """The repaired bag's connection for a recovered channel; None when its type is unusable."""
+    kwargs: dict[str, Any] = {}
+    if ch.msgdef and ch.msgdef_format in ('ros2msg', ''):
+        ts = get_typestore(Stores.EMPTY)
+        try:
+            ts.register(get_types_from_msg(ch.msgdef, ch.msgtype))
+            kwargs = {'msgdef': ch.msgdef, 'rihs01': ch.digest or ts.hash_rihs01(ch.msgtype)}
+        except Exception:  # noqa: BLE001 - a damaged definition makes the parser raise anything: unusable
+            kwargs = {}
+    if not kwargs:
+        if ch.msgtype not in store.fielddefs:
+            return None
+        kwargs = {'typestore': store}
+    try:
+        return writer.add_connection(ch.topic, ch.msgtype, offered_qos_profiles=ch.qos, **kwargs)
+    except (WriterError, TypesysError, KeyError, ValueError):
+        return None

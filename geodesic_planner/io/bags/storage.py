@@ -8,16 +8,24 @@ through its ``StorageWriter`` protocol (``path``, ``add_msgtype``, ``add_connect
 implement that protocol plus :meth:`flush`, so the recorder uses only public API:
 
 * :class:`McapStorage` writes through the ``mcap`` package's :class:`mcap.writer.Writer`
-  (``flush()`` closes the pending chunk and flushes the file);
+  (``flush()`` closes the pending chunk and writes it to the file);
 * :class:`Sqlite3Storage` writes the rosbag2 SQLite schema (version 4) and commits on ``flush()``.
 
 rosbags still builds the connections, type hashes and ``metadata.yaml``.
+
+Write failures (a full disk). Both storages touch the file only in ``flush()`` and ``close()``
+(SQLite also when its page cache spills during an insert). A failed flush raises and keeps what
+it could not write when it can: the MCAP bytes stay in memory and the file is cut back to its last
+complete flush (:class:`_FileSink`), the SQLite transaction stays open unless SQLite rolled it
+back. :meth:`has_pending` tells the recorder which of the two happened, so that it counts only
+what is in the file.
 """
 from __future__ import annotations
 
+import os
 import sqlite3
 from importlib.metadata import version
-from typing import TYPE_CHECKING, ClassVar
+from typing import IO, TYPE_CHECKING, Any, ClassVar, cast
 
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
@@ -41,6 +49,66 @@ def _serialization_format(connection: Connection) -> str:
     return str(getattr(connection.ext, 'serialization_format', 'cdr'))
 
 
+class _FileSink:
+    """Append-only binary stream for the mcap writer that never leaves half a flush in the file.
+
+    ``write`` only buffers; :meth:`flush` appends the buffer to the file. When that fails (no space
+    left), the file is cut back to the end of the last complete flush and the bytes are kept for
+    the next attempt, so the file always holds whole records and ``tell()`` stays the offset the
+    next record will have.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self._file = path.open('xb', buffering=0)
+        self._size = 0  # bytes in the file (whole flushes)
+        self._buf = bytearray()
+
+    def write(self, data: bytes | bytearray | memoryview) -> int:
+        """Buffer ``data``; returns its length."""
+        self._buf += data
+        return len(data)
+
+    def tell(self) -> int:
+        """Offset of the next byte written (file and buffer)."""
+        return self._size + len(self._buf)
+
+    @property
+    def pending(self) -> int:
+        """Bytes not yet in the file."""
+        return len(self._buf)
+
+    def flush(self) -> None:
+        """Append the buffer to the file.
+
+        Raises:
+            OSError: the write failed; the file is back at its previous size, the bytes kept.
+        """
+        if not self._buf:
+            return
+        done = 0
+        try:
+            with memoryview(self._buf) as view:
+                while done < len(view):
+                    n = self._file.write(view[done:])
+                    if not n:
+                        raise OSError(f'short write to {self._file.name}')
+                    done += n
+        except OSError:
+            if done:
+                try:
+                    os.ftruncate(self._file.fileno(), self._size)
+                    self._file.seek(self._size)
+                except OSError:
+                    pass
+            raise
+        self._size += len(self._buf)
+        self._buf = bytearray()
+
+    def close(self) -> None:
+        """Close the file (unflushed bytes are dropped)."""
+        self._file.close()
+
+
 class McapStorage:
     """MCAP storage file ``<bag>/<bag name>.mcap`` (ROS 2 profile, uncompressed chunks of 1 MiB)."""
 
@@ -54,8 +122,8 @@ class McapStorage:
             msg = 'the flushable MCAP storage writes uncompressed chunks only'
             raise WriterError(msg)
         self.path = path / f'{path.name}.mcap'
-        self._file = self.path.open('xb')
-        self._mcap = McapWriter(self._file, compression=CompressionType.NONE)
+        self._file = _FileSink(self.path)
+        self._mcap = McapWriter(cast('IO[Any]', self._file), compression=CompressionType.NONE)
         self._mcap.start(profile='ros2', library=f'geodesic_planner (mcap {version("mcap")})')
         self._schemas: dict[str, int] = {}
         self._channels: dict[int, int] = {}
@@ -77,8 +145,16 @@ class McapStorage:
                                publish_time=timestamp)
 
     def flush(self) -> None:
-        """Write the pending chunk (if it holds messages) and flush the file to the OS."""
-        self._mcap.flush()
+        """Close the pending chunk (if it holds messages) and write everything to the file.
+
+        Raises:
+            OSError: the file could not be written; see :meth:`has_pending`.
+        """
+        self._mcap.flush()  # ends with the sink's flush (also a retry of an earlier failed one)
+
+    def has_pending(self) -> bool:
+        """True when bytes of a failed flush wait in memory for the next one."""
+        return self._file.pending > 0
 
     def close(self, version: int, metadata: str) -> None:
         """Write the rosbag2 metadata record, the summary and the footer; close the file."""
@@ -86,6 +162,7 @@ class McapStorage:
         try:
             self._mcap.add_metadata('rosbag2', {'serialized_metadata': metadata})
             self._mcap.finish()
+            self._file.flush()
         finally:
             self._file.close()
 
@@ -147,8 +224,16 @@ class Sqlite3Storage:
                          (connection.id, timestamp, bytes(data)))
 
     def flush(self) -> None:
-        """Commit the open transaction (committed rows survive a process kill)."""
+        """Commit the open transaction (committed rows survive a process kill).
+
+        Raises:
+            sqlite3.Error: the commit failed; see :meth:`has_pending`.
+        """
         self._db.commit()
+
+    def has_pending(self) -> bool:
+        """True while a transaction is open (rows written, not committed, not rolled back)."""
+        return self._db.in_transaction
 
     def close(self, version: int, metadata: str) -> None:
         """Store the rosbag2 metadata, commit and close."""
@@ -177,3 +262,8 @@ class FlushableWriter(Writer):
         storage = self.storage
         if isinstance(storage, (McapStorage, Sqlite3Storage)):
             storage.flush()
+
+    def has_pending(self) -> bool:
+        """True when data written but not yet in the file is still held (retried by :meth:`flush`)."""
+        storage = self.storage
+        return isinstance(storage, (McapStorage, Sqlite3Storage)) and storage.has_pending()
