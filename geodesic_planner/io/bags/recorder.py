@@ -41,7 +41,6 @@ from .cdr import make_typestore, qos_profile
 from .storage import FlushableWriter
 
 if TYPE_CHECKING:
-    import os
     from types import TracebackType
 
     from rosbags.interfaces import Connection
