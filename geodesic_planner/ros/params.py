@@ -125,6 +125,17 @@ def positive_integer(value: object) -> str | None:
     return None
 
 
+def integer_in(lo: int, hi: int) -> Check:
+    """An integer in [lo, hi] (a double is refused, even an integral one)."""
+    def check(value: object) -> str | None:
+        if isinstance(value, bool) or not isinstance(value, int):
+            return f'must be an integer, got {value!r}'
+        if not lo <= value <= hi:
+            return f'must be in [{lo}, {hi}], got {value!r}'
+        return None
+    return check
+
+
 def one_of(choices: Sequence[str]) -> Check:
     """One of ``choices``."""
     def check(value: object) -> str | None:
@@ -233,6 +244,11 @@ _SPECS = (
               'in [1e-05, 10]', in_range(1e-5, 10.0)),
     # planner
     ParamSpec('frame_id', STRING, '', 'Base frame of requests and outputs (empty: the model base link).'),
+    ParamSpec('max_queued_requests', INTEGER, 32,
+              'Plan requests (both services) that may wait or plan at once; a request beyond them '
+              'is refused at once (PLANNING_FAILED, "planner overloaded"), counted on /diagnostics '
+              'and in a rate-limited warning. Fixed at start.', 'integer in [1, 1000]',
+              integer_in(1, 1000), read_only=True),
     ParamSpec('plan_timeout', DOUBLE, 5.0,
               'Longest time a request waits for its plan, s (late plans fail).', 'in [1e-06, 3600]',
               in_range(1e-6, 3600.0)),
@@ -264,7 +280,7 @@ PLANNER_PARAMETERS = ('robot', 'robot_description', 'base_link', 'tip_link', 'jo
                       'metric', 'position_weight', 'orientation_weight', 'max_velocity',
                       'max_acceleration', 'joint_limits', 'max_tool_speed',
                       'max_tool_angular_speed', 'allowed_start_tolerance', 'velocity_scaling',
-                      'sample_period', 'frame_id', 'plan_timeout')
+                      'sample_period', 'frame_id', 'plan_timeout', 'max_queued_requests')
 PROCESSOR_PARAMETERS = ('input_topic', 'output_topic', 'sample_period', 'velocity_scaling',
                         'max_output_points', 'bag_path', 'storage', 'record_topics')
 

@@ -45,11 +45,22 @@ error line and exit code 1.
 Timing and the pipeline (parameters -> configuration, request -> messages):
 :mod:`geodesic_planner.ros.planning`.
 
-Executor model, on rclpy's public API: a MultiThreadedExecutor (3 threads) spun by the main
-thread serves the plan service, in a MutuallyExclusiveCallbackGroup of its own (plans are
-computed one at a time in request order, and each successful plan is published exactly once, by
-the request that computed it, before its response is sent), and the parameter services (the
-node's default group: a parameter change never waits behind a plan). ``/joint_states`` is taken
+Executor model, on rclpy's public API: a MultiThreadedExecutor spun by the main thread, with
+``max_queued_requests + 3`` threads, serves both plan services in a ReentrantCallbackGroup and
+the parameter services (the node's default group: a parameter change never waits behind a plan).
+
+Queue and overload (:class:`~geodesic_planner.ros.admission.PlanQueue`): a request takes a ticket
+when it arrives; at most ``max_queued_requests`` (default 32) may hold one, waiting or planning.
+Ticket holders plan one at a time, in arrival order; each successful executed plan is published
+exactly once, by the request that computed it, before its response is sent. A request that
+finds the queue full is answered at once with PLANNING_FAILED ("planner overloaded ..."), counted
+on /diagnostics (``requests refused queue full``) and in a warning at most every 2 s with the
+count; a request that waits longer than ``plan_timeout`` for its turn is answered TIMED_OUT. The
+services' QoS is reliable KEEP_ALL, so DDS itself never overwrites a request or a reply in a
+burst; with a thread always free, the node drains requests as fast as it can refuse them. A
+client that sends many requests at once should also use KEEP_ALL (its own writer's KEEP_LAST
+history would overwrite requests before they are sent). Every request the node takes is answered.
+``/joint_states`` is taken
 by a hidden node (``_geodesic_planner_joint_states``) spun by an ``rclpy.experimental.EventsExecutor``
 in a thread of its own, so a state message never waits behind a plan either. The latest state is
 an immutable tuple swapped atomically; the configuration (robot, planner, limits) is an
@@ -88,7 +99,7 @@ from geodesic_planner_interfaces.srv import PlanTrajectory
 from nav_msgs.msg import Path
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor
 from rclpy.experimental import EventsExecutor
@@ -104,6 +115,7 @@ from ..core.errors import GeodesicPlannerError, RequestError
 from ..io.requests import PlanRequest
 from . import conversions as cv
 from . import params, runtime
+from .admission import PlanQueue
 from .diagnostics import NodeStatus
 from .matching import matched_logger, wait_for_matched_subscriptions
 from .params import PLANNER_PARAMETERS
@@ -188,11 +200,16 @@ class GeodesicPlannerNode(Node):
         self._state_executor: Executor | None = None  # an EventsExecutor (a factory function)
         self._state_thread: threading.Thread | None = None
         self._states_stop = threading.Event()
-        # Both services share one MutuallyExclusiveCallbackGroup: plans run one at a time, in order.
-        service_qos = QoSProfile(depth=64, history=HistoryPolicy.KEEP_LAST,
+        # Both services: a reentrant group on a pool of max_queued_requests + 3 threads, so that a
+        # thread is always free to take the next request, and the PlanQueue (admission, one plan
+        # at a time, in order). KEEP_ALL: DDS never overwrites a request or a reply in a burst.
+        self.queue = PlanQueue(int(self.get_parameter('max_queued_requests').value))
+        self._refused_logged = 0
+        self.status.set(max_queued_requests=self.queue.depth, requests_refused_queue_full=0)
+        service_qos = QoSProfile(history=HistoryPolicy.KEEP_ALL,
                                  reliability=ReliabilityPolicy.RELIABLE,
                                  durability=DurabilityPolicy.VOLATILE)
-        plans = MutuallyExclusiveCallbackGroup()
+        plans = ReentrantCallbackGroup()
         self.plan_srv = self.create_service(GetPlan, '~/plan', self._on_plan,
                                             qos_profile=service_qos, callback_group=plans)
         self.plan_trajectory_srv = self.create_service(
@@ -430,7 +447,17 @@ class GeodesicPlannerNode(Node):
             current_q = self.current_joints(config.joint_names)
             if not check_start and (request.start is not None or request.start_joints is not None):
                 current_q = None
-            outcome = self._plan(config, request, current_q, fv, fa, execute, stamp)
+            ticket = self.queue.enter()
+            if ticket is None:
+                return self._refuse()
+            if not self.queue.wait_turn(ticket, config.plan_timeout):
+                raise PlanTimeoutError(
+                    f'timed out after {config.plan_timeout:g} s waiting for the requests ahead of '
+                    'it (plan_timeout)')
+            try:     # its turn: one plan at a time; the plan's own plan_timeout starts now
+                outcome = self._plan(config, request, current_q, fv, fa, execute, stamp)
+            finally:
+                self.queue.leave(ticket)
         except GeodesicPlannerError as err:
             outcome = Outcome(error_code(err), str(err))
         except Exception as err:  # noqa: BLE001 - boundary: answer and keep serving
@@ -449,6 +476,22 @@ class GeodesicPlannerNode(Node):
             f'{result.solver_ms:.1f} ms, path error {result.path_error:.2g} m (request '
             f'{total_ms:.1f} ms: ' + ', '.join(f'{k} {v:.1f}' for k, v in result.stage_ms.items()) + ')')
         return outcome
+
+    def _refuse(self) -> Outcome:
+        """Answer a request the queue cannot take: counted, on /diagnostics, logged rate-limited."""
+        refused = self.queue.refused
+        self.status.set(requests_refused_queue_full=refused)
+        now = time.monotonic()
+        if now - self._last_warn.get('overload', -math.inf) >= 2.0:
+            self._last_warn['overload'] = now
+            self.get_logger().warning(
+                f'planner overloaded: refused {refused - self._refused_logged} request(s) since the '
+                f'last report ({refused} since start): {self.queue.depth} already queued or planning '
+                '(max_queued_requests)')
+            self._refused_logged = refused
+        return Outcome(PlanErrorCode.PLANNING_FAILED,
+                       f'planner overloaded: {self.queue.depth} requests already queued or planning '
+                       '(max_queued_requests); refused without planning, try again later')
 
     def _plan(self, config: PlannerConfig, request: PlanRequest, current_q: np.ndarray | None,
               velocity_factor: float | None, acceleration_factor: float | None, execute: bool,
@@ -524,8 +567,10 @@ def main(args: list[str] | None = None) -> int:
         node = None
         executor = None
         try:
-            executor = MultiThreadedExecutor(num_threads=3)
             node = GeodesicPlannerNode()
+            # a thread per queued request plus three: one always free to take (and refuse) the
+            # next request, the parameter services, the /robot_description subscription
+            executor = MultiThreadedExecutor(num_threads=node.queue.depth + 3)
             executor.add_node(node)
             node.start_state_thread()
             runtime.spin_until(stop, executor, node.get_logger())
