@@ -572,8 +572,11 @@ def main(args: list[str] | None = None) -> int:
             # next request, the parameter services, the /robot_description subscription
             executor = MultiThreadedExecutor(num_threads=node.queue.depth + 3)
             executor.add_node(node)
+            guard = runtime.UniqueNameGuard(node, stop, lambda state: node.status.set(name_check=state))
             node.start_state_thread()
             runtime.spin_until(stop, executor, node.get_logger())
+            if guard.refusal is not None:
+                return 1
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         except (ConfigError, ParameterException) as err:

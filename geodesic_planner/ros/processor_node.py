@@ -547,9 +547,14 @@ def _run(stop: threading.Event) -> int:
         node = TrajectoryProcessorNode()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
+        status = node.status
+        guard = runtime.UniqueNameGuard(node, stop, lambda state: status.set(name_check=state))
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
-        node.get_logger().info('shutting down (signal received)')
+        if guard.refusal is not None:
+            rc = 1
+        else:
+            node.get_logger().info('shutting down (signal received)')
         _drain(node, executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
