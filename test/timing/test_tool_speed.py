@@ -12,7 +12,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 from timing_paths import PolyPath, check_limits, curved
 
@@ -30,10 +30,16 @@ ROBOTS = ('planar_3r', 'ur5e', 'panda', 'rrpp')
 RTOL = 1e-9
 #: "The limit binds": the peak is within this fraction of the limit (TOPP runs 0.1 % below it; on
 #: a collocation path the tool speed per unit s varies, and the law reaches the cap at its maximum).
+#: Where the smooth law had to be stretched uniformly for another row (``time_scale`` > 1, e.g. a
+#: joint's acceleration at a sharp feature of a collocation path), the peak is the cap divided by
+#: that stretch.
 BIND = 0.02
 #: Dense time samples for the independent check.
 SAMPLES = 20001
+#: Each example plans a path (collocation on panda and rrpp), so no shrinking (minutes per failure):
+#: a failure reports the example as generated.
 HYPOTHESIS = settings(max_examples=4, derandomize=True, deadline=None, database=None,
+                      phases=(Phase.explicit, Phase.reuse, Phase.generate),
                       suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 
 _PLANNERS: dict[str, GeodesicPlanner] = {}
@@ -89,10 +95,11 @@ def tool_speeds(robot, traj, samples: int = SAMPLES) -> dict[str, float]:
     cos = 0.5 * (np.trace(rel, axis1=1, axis2=2) - 1.0)
     turn = np.arctan2(sin, cos) / dt
     # The trajectory's velocities agree with its positions: J dq at the middle of each step against
-    # the chord (second order in dt, which is <= 1e-4 of the duration here).
+    # the chord (second order in dt, which is <= 1e-4 of the duration here), plus 1e-9 m/s for the
+    # round-off of fk differences (1e-16 m over steps of >= 1e-5 s) when the tool origin hardly moves.
     mid_v = 0.5 * (np.linalg.norm(twist[1:, :3], axis=1) + np.linalg.norm(twist[:-1, :3], axis=1))
-    scale = max(float(mid_v.max()), 1e-12)
-    assert np.max(np.abs(mid_v - chord)) <= 1e-3 * scale, 'J dq disagrees with fk differences'
+    assert np.max(np.abs(mid_v - chord)) <= 1e-3 * float(mid_v.max()) + 1e-9, \
+        'J dq disagrees with fk differences'
     return {'v': float(np.linalg.norm(twist[:, :3], axis=1).max()),
             'w': float(np.linalg.norm(twist[:, 3:], axis=1).max()),
             'v_chord': float(chord.max()), 'w_chord': float(turn.max())}
@@ -114,22 +121,29 @@ def check_unchanged_path(path, traj) -> None:
         assert float(np.linalg.norm(off, axis=1).max()) <= 1e-6
 
 
-def check_tool_limit(path, key: str, arg: str) -> None:
-    """A limit at 40 % of the free law's peak: never exceeded, binds, slower, joints within limits."""
+def check_tool_limit(path, key: str, arg: str) -> bool:
+    """A limit at 40 % of the free law's peak: never exceeded, binds, slower, joints within limits.
+
+    Returns False (nothing checked) when the free law's peak is below 1e-3 (m/s or rad/s): the
+    move hardly translates or turns the tool.
+    """
     robot = path.robot
     free = path.timed()
     peak = tool_speeds(robot, free)[key]
-    assume(peak > 1e-3)
+    if peak <= 1e-3:
+        return False
     limit = 0.4 * peak
     traj = path.timed(**{arg: limit})
     got = tool_speeds(robot, traj)
     assert got[key] <= limit * (1.0 + RTOL), f'{arg}: peak {got[key]:.9g} above the limit {limit:.9g}'
     assert got[f'{key}_chord'] <= limit * (1.0 + RTOL)
-    assert got[key] >= limit * (1.0 - BIND), f'{arg}: peak {got[key]:.6g} does not reach {limit:.6g}'
+    assert got[key] * traj.time_scale >= limit * (1.0 - BIND), \
+        f'{arg}: peak {got[key]:.6g} (stretched by {traj.time_scale:.6g}) does not reach {limit:.6g}'
     assert traj.duration > free.duration
     check_limits(traj)
     check_unchanged_path(path, traj)
     assert getattr(traj, arg) == limit
+    return True
 
 
 @pytest.mark.parametrize('name', ROBOTS)
@@ -137,7 +151,7 @@ def test_tool_speed_limit_holds_and_binds(name: str) -> None:
     @HYPOTHESIS
     @given(moves(name))
     def run(move: tuple[np.ndarray, np.ndarray]) -> None:
-        check_tool_limit(plan(name, *move), 'v', 'max_tool_speed')
+        assume(check_tool_limit(plan(name, *move), 'v', 'max_tool_speed'))
 
     run()
 
@@ -147,9 +161,23 @@ def test_tool_angular_speed_limit_holds_and_binds(name: str) -> None:
     @HYPOTHESIS
     @given(moves(name))
     def run(move: tuple[np.ndarray, np.ndarray]) -> None:
-        check_tool_limit(plan(name, *move), 'w', 'max_tool_angular_speed')
+        assume(check_tool_limit(plan(name, *move), 'w', 'max_tool_angular_speed'))
 
     run()
+
+
+@pytest.mark.parametrize('move', [
+    # A collocation path with a sharp feature near s = 0.85: the smooth law is stretched by 1.14
+    # for a joint's acceleration there, so the tool cruises at 87.5 % of its limit.
+    ([0.0, 0.0, 0.0, -0.8203, 1.44865, 1.56204633, 0.0], [0.0, 0.6, 0.0, -0.2203, 1.44865, 1.56204633, 0.0]),
+    # Only joint 7 turns: the tool origin does not move (the angular row is the one that binds).
+    ([0.0, 0.0, 0.0, -1.5708, 0.0, 1.56204633, 0.0], [0.0, 0.0, 0.0, -1.5708, 0.0, 1.56204633, 0.6]),
+])
+def test_panda_moves_found_by_hypothesis(move: tuple[list[float], list[float]]) -> None:
+    path = planner('panda').plan_joints(*move)
+    checked = [check_tool_limit(path, key, arg)
+               for key, arg in (('v', 'max_tool_speed'), ('w', 'max_tool_angular_speed'))]
+    assert checked[1]
 
 
 def test_both_limits_on_a_position_metric_path() -> None:
