@@ -81,7 +81,12 @@ class JointLimits(NamedTuple):
 
 
 class TimeLaw(Protocol):
-    """A time law: path and limits in, :class:`Trajectory` out, within the limits."""
+    """A time law: path and limits in, :class:`Trajectory` out, within the limits.
+
+    Within all of them: the joint rows and, when set, the tool speed rows
+    (:func:`~.tool.tool_rows`, or :func:`~.tool.tool_twist` for a law that does not sample the
+    path at nodes).
+    """
 
     def __call__(self, path: PathLike, limits: JointLimits, duration: float | None) -> Trajectory:
         """Time ``path`` within ``limits``.
