@@ -89,7 +89,8 @@ class JointPath(ABC):
         return float(segment_distance(T[:, :3, 3], T[0, :3, 3], T[-1, :3, 3]).max())
 
     def timed(self, max_velocity: npt.ArrayLike | None = None, max_acceleration: npt.ArrayLike | None = None,
-              duration: float | None = None) -> Trajectory:
+              duration: float | None = None, *, max_tool_speed: float | None = None,
+              max_tool_angular_speed: float | None = None) -> Trajectory:
         """Rest-to-rest time parameterization under per-joint limits (see timing.parameterize).
 
         The one call from core up into the timing layer: a function-local import, so that core
@@ -100,7 +101,14 @@ class JointPath(ABC):
             max_velocity, max_acceleration: per-joint limits (scalars broadcast); the robot's
                 limits when None; rad/s (m/s), rad/s² (m/s²).
             duration: stretch to exactly this duration, s (must not be shorter than feasible).
+            max_tool_speed: limit on the linear speed of the tool frame origin (base frame), m/s;
+                None: no limit.
+            max_tool_angular_speed: limit on the norm of the tool's angular velocity, rad/s;
+                None: no limit.
+        Raises:
+            LimitError: an invalid limit (the message names it) or a duration below the minimum.
         """
         from ..timing.parameterize import time_parameterize
         return time_parameterize(self, max_velocity=max_velocity, max_acceleration=max_acceleration,
-                                 duration=duration)
+                                 duration=duration, max_tool_speed=max_tool_speed,
+                                 max_tool_angular_speed=max_tool_angular_speed)

@@ -16,6 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core.errors import LimitError
+from .tool import check_tool_limit, tool_kinematics
 
 if TYPE_CHECKING:
     from .trajectory import Trajectory
@@ -57,21 +58,35 @@ class TimeScaling(Protocol):
 
 
 class JointLimits(NamedTuple):
-    """Validated per-joint limits.
+    """Validated limits: per joint, and optionally on the tool's Cartesian speed.
+
+    A law honours every limit it is given: the tool limits are velocity rows like the joints'
+    (:mod:`.tool` computes them from the path's robot).
 
     Attributes:
         joint_names: joint names, length dof.
         max_velocity: shape (dof,), rad/s (m/s), positive and finite.
         max_acceleration: shape (dof,), rad/s^2 (m/s^2), positive and finite.
+        max_tool_speed: linear speed of the tool frame origin, base frame, m/s (positive and
+            finite), or None (no limit); set only when the path's robot has kinematics.
+        max_tool_angular_speed: norm of the tool's angular velocity, rad/s (positive and
+            finite), or None (no limit).
     """
 
     joint_names: list[str]
     max_velocity: np.ndarray
     max_acceleration: np.ndarray
+    max_tool_speed: float | None = None
+    max_tool_angular_speed: float | None = None
 
 
 class TimeLaw(Protocol):
-    """A time law: path and limits in, :class:`Trajectory` out, within the limits."""
+    """A time law: path and limits in, :class:`Trajectory` out, within the limits.
+
+    Within all of them: the joint rows and, when set, the tool speed rows
+    (:func:`~.tool.tool_rows`, or :func:`~.tool.tool_twist` for a law that does not sample the
+    path at nodes).
+    """
 
     def __call__(self, path: PathLike, limits: JointLimits, duration: float | None) -> Trajectory:
         """Time ``path`` within ``limits``.
@@ -112,16 +127,23 @@ def _limit(value: npt.ArrayLike | None, default: npt.ArrayLike | None, dof: int,
 
 
 def joint_limits(path: PathLike, max_velocity: npt.ArrayLike | None = None,
-                 max_acceleration: npt.ArrayLike | None = None) -> JointLimits:
+                 max_acceleration: npt.ArrayLike | None = None, *,
+                 max_tool_speed: float | None = None,
+                 max_tool_angular_speed: float | None = None) -> JointLimits:
     """The path's joint names and validated limits (the robot's where None).
 
     Args:
         path: the path (``dof``, ``joint_names``, optional ``robot``).
         max_velocity: scalar or (dof,), rad/s (m/s); None: ``path.robot.max_velocity``.
         max_acceleration: scalar or (dof,), rad/s^2 (m/s^2); None: ``path.robot.max_acceleration``.
+        max_tool_speed: limit on the linear speed of the tool frame origin (base frame), m/s;
+            None: no limit.
+        max_tool_angular_speed: limit on the norm of the tool's angular velocity, rad/s; None: no
+            limit.
     Raises:
         LimitError: a limit is missing, not a number, of the wrong size, or not positive and
-            finite (the message names the joint).
+            finite (the message names the joint, or the tool limit's argument); a tool limit on a
+            path without a robot with kinematics (``robot.fk``, ``jacobian12``, ``hessian12``).
     """
     dof = int(path.dof)
     joint_names = [str(n) for n in getattr(path, 'joint_names', [])]
@@ -133,7 +155,11 @@ def joint_limits(path: PathLike, max_velocity: npt.ArrayLike | None = None,
     vmax = _limit(max_velocity, getattr(robot, 'max_velocity', None), dof, joint_names, 'max_velocity')
     amax = _limit(max_acceleration, getattr(robot, 'max_acceleration', None), dof, joint_names,
                   'max_acceleration')
-    return JointLimits(joint_names, vmax, amax)
+    tool_speed = check_tool_limit(max_tool_speed, 'max_tool_speed')
+    tool_angular = check_tool_limit(max_tool_angular_speed, 'max_tool_angular_speed')
+    if tool_speed is not None or tool_angular is not None:
+        tool_kinematics(path, 'max_tool_speed' if tool_speed is not None else 'max_tool_angular_speed')
+    return JointLimits(joint_names, vmax, amax, tool_speed, tool_angular)
 
 
 def check_duration(duration: float | None) -> float | None:

@@ -20,8 +20,12 @@ def time_parameterize(path: PathLike, max_velocity: npt.ArrayLike | None = None,
                       max_acceleration: npt.ArrayLike | None = None,
                       duration: float | None = None, *, law: TimeLaw | None = None,
                       grid_points: int = 100, refine: int = 2, smoothing: float = 0.05,
-                      check_samples: int | None = None) -> Trajectory:
+                      check_samples: int | None = None, max_tool_speed: float | None = None,
+                      max_tool_angular_speed: float | None = None) -> Trajectory:
     """Time law along ``path`` within joint limits; by default the fastest smooth rest-to-rest one.
+
+    Tool speed limits (Cartesian, as Pilz's planners honour them) are velocity rows like the
+    joints': the tool's twist along the path is ``J(q(s)) q'(s) sdot`` (:mod:`.tool`).
 
     Args:
         path: a :class:`~.law.PathLike`: ``evaluate(s, order)`` (each (len(s), dof), w.r.t. s in
@@ -37,18 +41,26 @@ def time_parameterize(path: PathLike, max_velocity: npt.ArrayLike | None = None,
         refine: the time-optimal pass runs on ``refine`` times finer steps.
         smoothing: acceleration-ramp time as a fraction of the time-optimal duration, in (0, 1].
         check_samples: time samples of the dense limit check (default max(4000, 20 nodes)).
+        max_tool_speed: limit on the linear speed of the tool frame origin (base frame), m/s,
+            positive and finite; None: no limit. Needs ``path.robot`` with kinematics (``fk``,
+            ``jacobian12``, ``hessian12``).
+        max_tool_angular_speed: limit on the norm of the tool's angular velocity, rad/s, positive
+            and finite; None: no limit. Needs ``path.robot`` likewise.
     Returns:
         A :class:`Trajectory`; for the default law, zero velocity and acceleration at both ends
         (and at corners), within the limits.
     Raises:
-        LimitError: invalid limits (the message names the joint) or options, duration shorter
-            than the minimum (the message gives it), or a path that cannot be traversed.
+        LimitError: invalid limits (the message names the joint, or the tool limit's
+            argument) or options, a tool limit on a path without a robot, duration shorter than
+            the minimum (the message gives it), or a path that cannot be traversed.
     """
     if law is None:
         law = SmoothRestToRest(grid_points=int(grid_points), refine=refine, smoothing=smoothing,
                                check_samples=check_samples)
     duration = check_duration(duration)
-    return law(path, joint_limits(path, max_velocity, max_acceleration), duration)
+    limits = joint_limits(path, max_velocity, max_acceleration, max_tool_speed=max_tool_speed,
+                          max_tool_angular_speed=max_tool_angular_speed)
+    return law(path, limits, duration)
 
 
 __all__ = ['CHECK_MARGIN', 'CORNER_TOLERANCE', 'TOPP_MARGIN', 'Trajectory', 'time_parameterize']

@@ -1,7 +1,8 @@
 """The rest-to-rest smoothing law: time-optimal profile, smoothed, checked against the limits.
 
 1. The path is sampled (:mod:`.sampling`) and its time-optimal profile computed (:mod:`.topp`)
-   with limits * (1 - TOPP_MARGIN); its duration is :attr:`Trajectory.topp_duration`.
+   with limits * (1 - TOPP_MARGIN); its duration is :attr:`Trajectory.topp_duration`. Tool speed
+   limits, when given, are velocity rows like the joints' (:mod:`.tool`): a cap on sdot^2.
 2. **Smoothing**: ``s*(t)`` has acceleration jumps (bang-bang), including at both ends. Each
    rest-to-rest piece (the rests: both ends and the corners of the path) is convolved with a
    triangular kernel of half-width ``tau = smoothing * T* / 2``, done exactly:
@@ -11,7 +12,7 @@
    zero acceleration. Each piece lasts ``T* + 2 tau``.
 3. **Guarantee**: the law is checked on a dense time grid against the full limits (plus samples
    about uniform in s, placed from the nodes of ``s*`` delayed by tau, where the law crosses the
-   path fast); if smoothing pushed any joint over a limit, time is stretched uniformly
+   path fast); if smoothing pushed any joint (or the tool) over a limit, time is stretched uniformly
    (``t -> lambda t`` divides velocities by ``lambda`` and accelerations by ``lambda^2``) until
    every sample is within ``1 - CHECK_MARGIN`` of the limits; the samples nearest a limit are
    re-checked with the exact path derivatives. ``min_duration / topp_duration`` is about
@@ -31,6 +32,7 @@ from ..core.errors import LimitError
 from ._arrays import clip
 from .law import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
+from .tool import ToolRows, tool_rows
 from .topp import topp
 from .trajectory import Trajectory
 
@@ -318,7 +320,7 @@ class SmoothRestToRest:
                 that cannot be traversed or returns bad derivatives.
         """
         ps = refine_adaptively(path, sample_path(path, int(self.grid_points)))
-        joint_names, vmax, amax = limits
+        joint_names, vmax, amax = limits.joint_names, limits.max_velocity, limits.max_acceleration
         if ps.aR.shape[1] != vmax.size:
             raise LimitError(f'path.evaluate returned {ps.aR.shape[1]} joints, expected {vmax.size}')
         if float(max(np.abs(ps.aR).max(), np.abs(ps.aL).max())) == 0.0:
@@ -326,11 +328,14 @@ class SmoothRestToRest:
             T = 0.0 if duration is None else duration
             return Trajectory(path=path, joint_names=joint_names, duration=T, max_velocity=vmax,
                               max_acceleration=amax, topp_duration=0.0, min_duration=0.0,
-                              rest_times=(0.0, float(T)))
+                              rest_times=(0.0, float(T)), max_tool_speed=limits.max_tool_speed,
+                              max_tool_angular_speed=limits.max_tool_angular_speed)
+        tool = tool_rows(path, limits, ps)
         fine = ps.refined(int(self.refine))
-        x = topp(fine, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN))
+        x_max = None if tool is None else tool.speed_cap(int(self.refine), TOPP_MARGIN)
+        x = topp(fine, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN), x_max)
         law = build_piecewise_law(fine.s, x, float(self.smoothing))
-        t_min = _stretch(path, ps, law, vmax, amax, self.check_samples) * law.duration
+        t_min = _stretch(path, ps, law, vmax, amax, self.check_samples, tool) * law.duration
         if duration is None:
             T = t_min
         else:
@@ -342,15 +347,18 @@ class SmoothRestToRest:
         rest_times = tuple(float(t) * scale for t in law.t_offsets[:-1]) + (float(T),)
         return Trajectory(path=path, joint_names=joint_names, duration=float(T), max_velocity=vmax,
                           max_acceleration=amax, topp_duration=law.t_star, min_duration=float(t_min),
-                          rests=law.rests, rest_times=rest_times, scaling=law, time_scale=scale)
+                          rests=law.rests, rest_times=rest_times, scaling=law, time_scale=scale,
+                          max_tool_speed=limits.max_tool_speed,
+                          max_tool_angular_speed=limits.max_tool_angular_speed)
 
 
 def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarray, amax: np.ndarray,
-             check_samples: int | None) -> float:
+             check_samples: int | None, tool: ToolRows | None = None) -> float:
     """Uniform time stretch (>= 1) that keeps ``law`` within ``1 - CHECK_MARGIN`` of the limits.
 
     Dense check of the smoothed law against the full limits, with q', q'' interpolated from
-    ``ps``; the samples nearest a limit and the breakpoints are re-checked with exact values.
+    ``ps`` (and the tool rows' twist from ``tool.samples``); the samples nearest a limit and the
+    breakpoints are re-checked with exact values.
     """
     m = int(check_samples) if check_samples is not None else max(4000, 20 * ps.s.size)
     t_chk = np.linspace(0.0, law.duration, max(m, 10))
@@ -374,13 +382,17 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
     np.abs(a, out=a)
     a /= amax[:, None]
     ra_t = a.max(axis=0)
+    if tool is not None:
+        rv_t = np.maximum(rv_t, tool.ratios(s, sd))
     rv, ra = float(rv_t.max()), float(ra_t.max())
     # The samples closest to a limit are verified with the exact path derivatives.
     need = np.maximum(rv_t, np.sqrt(ra_t))
     k = max(1, min(EXACT_CHECKS, need.size))
     top = np.argpartition(need, -k)[-k:]
-    _, a_x, b_x = (np.asarray(v, dtype=float) for v in path.evaluate(s[top], order=2))
+    q_x, a_x, b_x = (np.asarray(v, dtype=float) for v in path.evaluate(s[top], order=2))
     rv = max(rv, float(np.max(np.abs(a_x * sd[top, None]) / vmax)))
+    if tool is not None:
+        rv = max(rv, float(np.max(tool.exact_ratios(q_x, a_x, sd[top]))))
     ra = max(ra, float(np.max(np.abs(a_x * sdd[top, None] + b_x * (sd[top] ** 2)[:, None]) / amax)))
     # At breakpoints q'' (or q') may jump: check both one-sided values at the exact crossing time.
     # (Rests at corners need no check: sdot = sddot = 0 there.)
@@ -390,6 +402,9 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
         for aa, bb in ((ps.aL[inner], ps.bL[inner]), (ps.aR[inner], ps.bR[inner])):
             rv = max(rv, float(np.max(np.abs(aa * sd_b[:, None]) / vmax)))
             ra = max(ra, float(np.max(np.abs(aa * sdd_b[:, None] + bb * (sd_b**2)[:, None]) / amax)))
+        if tool is not None:
+            for V in (tool.samples.aL[inner], tool.samples.aR[inner]):
+                rv = max(rv, float(np.max(tool.ratios_of(V.T, sd_b))))
     target = 1.0 - CHECK_MARGIN
     return max(1.0, rv / target, math.sqrt(ra / target))
 

@@ -2,7 +2,8 @@
 
 The squared path speed ``x = sdot^2`` is computed by a backward pass (largest ``x`` from which the
 end can still be reached at rest) and a greedy forward pass (largest admissible ``sddot``), subject
-to ``|q'(s) sdot| <= vmax`` and ``|q'(s) sddot + q''(s) sdot^2| <= amax`` per joint. ``sddot`` is
+to ``|q'(s) sdot| <= vmax`` and ``|q'(s) sddot + q''(s) sdot^2| <= amax`` per joint, and to further
+velocity rows given as a cap on ``x`` per node (the tool speed rows of :mod:`.tool`). ``sddot`` is
 constant per step, so the optimal law ``s*(t)`` is piecewise quadratic in time. Where q' jumps (a
 corner between the pieces of a piecewise geodesic) the profile is forced to rest.
 
@@ -173,7 +174,8 @@ def _pairs(rows: int) -> tuple[np.ndarray, np.ndarray]:
     return np.triu_indices(rows, 1)
 
 
-def topp(ps: PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
+def topp(ps: PathSamples, vmax: np.ndarray, amax: np.ndarray, x_max: np.ndarray | None = None
+         ) -> np.ndarray:
     """Time-optimal x = sdot^2 at the nodes (rest at both ends and at corners), TOPP-RA-like.
 
     Interpolation discretization: on step k, ``u_k`` (sddot) is constant and the acceleration
@@ -184,6 +186,8 @@ def topp(ps: PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
     Args:
         ps: path derivatives at the nodes.
         vmax, amax: limits, shape (dof,).
+        x_max: further velocity rows as a cap on x = sdot^2 at each node, (n+1,), 1/s^2 (the
+            tool speed rows, :meth:`~.tool.ToolRows.speed_cap`); None: joints only.
     Returns:
         x, shape (n+1,), zero at both ends and at corners.
     Raises:
@@ -215,6 +219,8 @@ def topp(ps: PathSamples, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
             alpha = np.where(moving, -rb / np.where(moving, ra, 1.0), 0.0)
             c = np.where(moving, -rl / np.where(moving, absa, 1.0), -np.inf)
             d = np.where(moving, rl / np.where(moving, absa, 1.0), np.inf)
+        if x_max is not None:
+            xv = np.minimum(xv, x_max)
         # Pairs (lower j, upper m): (alpha_j - alpha_m) x <= d_m - c_j = d_m + d_j (c = -d); each
         # unordered pair once, with |alpha_j - alpha_m| (a row that does not move has d = inf).
         iu, ju = _pairs(ra.shape[1])

@@ -31,6 +31,10 @@ class Trajectory:
         rest_times: the times of those rests, s (first 0, last ``duration``).
         scaling: the law's ``s(t)`` (None for a stationary path: s jumps from 0 to 1 at the end).
         time_scale: trajectory time per time of ``scaling`` (>= 1: uniformly stretched).
+        max_tool_speed: limit used on the linear speed of the tool frame origin (base frame), m/s;
+            None: none.
+        max_tool_angular_speed: limit used on the norm of the tool's angular velocity, rad/s;
+            None: none.
     """
 
     path: PathLike
@@ -44,6 +48,8 @@ class Trajectory:
     rest_times: tuple[float, ...] = ()
     scaling: TimeScaling | None = field(repr=False, default=None)
     time_scale: float = field(repr=False, default=1.0)
+    max_tool_speed: float | None = None
+    max_tool_angular_speed: float | None = None
 
     @property
     def optimality_ratio(self) -> float:
