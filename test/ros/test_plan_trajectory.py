@@ -408,3 +408,31 @@ def test_limits_from_joint_limits_yaml(described: tuple[Planner, Collector]) -> 
                                    and 'no acceleration limit' in m.msg), None),
                      DEADLINE, what='the missing acceleration limit warning', watch=p.watch)
     assert "['kr6_a6']" in log.msg and '5 rad/s^2' in log.msg
+
+
+def _tool_speeds(arr: cv.TrajectoryArrays, h: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """Linear (m/s) and angular (rad/s) tool speed at every point, by central differences of the
+    closed-form 3R forward kinematics along each point's joint velocity (independent of the
+    planner's Jacobian)."""
+    d = (fk_3r(arr.positions + h * arr.velocities) - fk_3r(arr.positions - h * arr.velocities)) / (2 * h)
+    return np.linalg.norm(d[:, :2], axis=1), np.abs(d[:, 2])
+
+
+def test_tool_speed_limits_honoured(planar: Planner) -> None:
+    free = planar.plan(plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R)))
+    v_free, w_free = _tool_speeds(cv.joint_trajectory_to_arrays(free.trajectory))
+    v_lim, w_lim = 0.3 * v_free.max(), 0.5 * w_free.max()
+    for params, index, limit in (({'max_tool_speed': v_lim}, 0, v_lim),
+                                 ({'max_tool_angular_speed': w_lim}, 1, w_lim)):
+        planar.set_parameters(sample_period=0.002, **params)       # a dense sample: 2 ms
+        try:
+            resp = planar.plan(plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R)))
+        finally:
+            planar.set_parameters(sample_period=0.01, **{k: 0.0 for k in params})
+        assert resp.error_code.val == OK, resp.message
+        arr = check_controller_contract(resp.trajectory, ROBOT_3R.joint_names)
+        check_line_phi_3r(arr)                                   # the same path, slower
+        speed = _tool_speeds(arr)[index]
+        assert speed.max() <= limit * (1 + 1e-6), (params, speed.max())
+        assert speed.max() >= 0.95 * limit, (params, speed.max())       # and it binds
+        assert arr.t[-1] > cv.joint_trajectory_to_arrays(free.trajectory).t[-1]
