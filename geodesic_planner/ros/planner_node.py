@@ -111,7 +111,7 @@ from std_msgs.msg import Header, String
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from ..core.errors import GeodesicPlannerError, RequestError
+from ..core.errors import GeodesicPlannerError, RequestError, quoted
 from ..io.requests import PlanRequest
 from . import conversions as cv
 from . import params, runtime
@@ -307,7 +307,8 @@ class GeodesicPlannerNode(Node):
         if reason is not None:
             self.get_logger().warning(f'parameter update rejected: {reason}')
             return SetParametersResult(successful=False, reason=reason)
-        names = ', '.join(f'{p.name}={p.value!r}' for p in ours if p.name != 'robot_description')
+        names = ', '.join(f'{p.name}={quoted(p.value) if isinstance(p.value, str) else p.value!r}'
+                          for p in ours if p.name != 'robot_description')
         self.get_logger().info(f'parameters updated: {names or "robot_description"}')
         return SetParametersResult(successful=True)
 

@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 import numpy.typing as npt
 
-from ..core.errors import TrajectoryError
+from ..core.errors import TrajectoryError, quoted
 
 #: At most this many problems are spelled out; the rest are counted.
 MAX_PROBLEMS = 20
@@ -116,7 +116,9 @@ def trajectory_problems(joint_names: Sequence[str], times: npt.ArrayLike, positi
         problems.add(f'empty joint name at index {empty[0]}')
     unique, counts = np.unique(np.asarray([n for n in names if n], dtype=str), return_counts=True)
     if np.any(counts > 1):
-        problems.add(f'duplicate joint names: {unique[counts > 1].tolist()}')
+        dups = unique[counts > 1].tolist()
+        shown = ', '.join(quoted(d, 40) for d in dups[:10]) + (f', ... ({len(dups)})' if len(dups) > 10 else '')
+        problems.add(f'duplicate joint names: [{shown}]')
     try:
         t = np.asarray(times, dtype=float)
     except (TypeError, ValueError):
@@ -146,7 +148,7 @@ def trajectory_problems(joint_names: Sequence[str], times: npt.ArrayLike, positi
         _check_field(accelerations, 'accelerations', names, n, True, problems)
     if require_rest_at_end and v_end is not None:
         moving = np.flatnonzero(v_end != 0.0)
-        problems.add_each(moving, lambda j: f'point {n - 1}: final velocity of joint {names[j]!r} is '
+        problems.add_each(moving, lambda j: f'point {n - 1}: final velocity of joint {quoted(names[j], 40)} is '
                                             f'{v_end[j]:.6g}, not 0')
     return problems.result()
 

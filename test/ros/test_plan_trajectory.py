@@ -436,3 +436,14 @@ def test_tool_speed_limits_honoured(planar: Planner) -> None:
         assert speed.max() <= limit * (1 + 1e-6), (params, speed.max())
         assert speed.max() >= 0.95 * limit, (params, speed.max())       # and it binds
         assert arr.t[-1] > cv.joint_trajectory_to_arrays(free.trajectory).t[-1]
+
+
+def test_huge_user_strings_are_cut_short(planar: Planner) -> None:
+    """A 1 MB frame_id or joint name is refused with a one-line reason that quotes 80 characters."""
+    huge = 'w' * 1_000_000
+    resp = planar.plan(plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R, frame=huge)))
+    assert resp.error_code.val == PlanErrorCode.FRAME_TRANSFORM_FAILURE
+    assert '(1000000 characters)' in resp.message and len(resp.message) < 400, len(resp.message)
+    resp = planar.plan(plan_request(goal_joints=[0.1, 0.2, 0.3], names=['joint1', 'joint2', huge]))
+    assert resp.error_code.val == PlanErrorCode.INVALID_REQUEST
+    assert '(1000000 characters)' in resp.message and len(resp.message) < 400, len(resp.message)
