@@ -186,7 +186,9 @@ def test_full_disk_counts_are_what_is_on_disk(start_node: Any, ros_node: Any, tm
         counts, lost = _closing(log)
         received, published, rejected = processor_totals(log)
         assert (received, published, rejected) == (15, 15, 0)
-        assert sum(lost.values()) >= 1
+        # Whether anything is lost depends on timing (mcap keeps a failed flush in memory and
+        # retries it; if the retry comes after the space is freed, everything reaches the disk).
+        # What must hold either way: on disk + not recorded = what went through, and the file agrees.
         assert counts[INPUT] + lost.get(INPUT, 0) == received
         assert counts[OUTPUT] + lost.get(OUTPUT, 0) == published
         path = bag_dir(log)
