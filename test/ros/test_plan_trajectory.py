@@ -89,13 +89,17 @@ class Planner:
         self.states = helper.create_publisher(JointState, '/joint_states', 10)   # absolute in the node
         self.client = helper.create_client(PlanTrajectory, f'{self.name}/plan_trajectory')
         self.set_client = helper.create_client(SetParameters, f'{self.name}/set_parameters')
-        wait_until(lambda: self.traj.subscription.get_publisher_count() > 0, DEADLINE,
-                   what='trajectory publisher matched', watch=self.watch)
-        # harmless round trips: a request with an unknown frame (FRAME_TRANSFORM_FAILURE)
-        warm_up_client(self.client, plan_request(goal=pose_3r(*GOAL_3R, frame='__warmup__')),
-                       DEADLINE, watch=self.watch)
-        warm_up_client(self.set_client, SetParameters.Request(parameters=[]), DEADLINE,
-                       watch=self.watch)
+        try:
+            wait_until(lambda: self.traj.subscription.get_publisher_count() > 0, DEADLINE,
+                       what='trajectory publisher matched', watch=self.watch)
+            # harmless round trips: a request with an unknown frame (FRAME_TRANSFORM_FAILURE)
+            warm_up_client(self.client, plan_request(goal=pose_3r(*GOAL_3R, frame='__warmup__')),
+                           DEADLINE, watch=self.watch)
+            warm_up_client(self.set_client, SetParameters.Request(parameters=[]), DEADLINE,
+                           watch=self.watch)
+        except BaseException:
+            self.process.stop()          # never leave a node running behind a failed start
+            raise
 
     def plan(self, req: PlanTrajectory.Request) -> PlanTrajectory.Response:
         return call_service(self.client, req, DEADLINE, watch=self.watch)
@@ -138,9 +142,11 @@ def helper(rclpy_runtime: RclpyRuntime) -> Iterator[Any]:
 @pytest.fixture(scope='module')
 def planar(helper: Any, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Planner]:
     p = Planner(helper, tmp_path_factory.mktemp('pt_planar'), {'robot': 'planar_3r'}, '/pt')
-    p.set_state(ik_3r(*START_3R), ROBOT_3R.joint_names, goal_3r)
-    yield p
-    p.stop()
+    try:
+        p.set_state(ik_3r(*START_3R), ROBOT_3R.joint_names, goal_3r)
+        yield p
+    finally:
+        p.stop()
 
 
 # =========================================================================== success
@@ -368,12 +374,16 @@ def described(helper: Any, tmp_path_factory: pytest.TempPathFactory) -> Iterator
                                   durability=DurabilityPolicy.TRANSIENT_LOCAL))
     description = helper.create_publisher(String, '/robot_description', latched)
     description.publish(String(data=KR6_URDF.read_text()))      # before the node starts: latched
-    p = Planner(helper, tmp, {'robot': '', 'joint_limits': str(tmp / 'joint_limits.yaml')},
-                '/described')
-    yield p, rosout
-    p.stop()
-    helper.destroy_publisher(description)
-    helper.destroy_subscription(rosout.subscription)
+    try:
+        p = Planner(helper, tmp, {'robot': '', 'joint_limits': str(tmp / 'joint_limits.yaml')},
+                    '/described')
+        try:
+            yield p, rosout
+        finally:
+            p.stop()
+    finally:
+        helper.destroy_publisher(description)
+        helper.destroy_subscription(rosout.subscription)
 
 
 def _kr6_plan(p: Planner) -> PlanTrajectory.Response:
