@@ -80,9 +80,9 @@ class JointPath(ABC):
 
     def ee_poses(self, s: np.ndarray) -> np.ndarray:
         """Tool poses (len(s), 4, 4) along the path, base frame."""
-        return self.robot.fk(self.evaluate(check_s(s))[0])
+        return self.robot.fk(self.evaluate(check_s(s), 0)[0])
 
-    def line_deviation(self, samples: int = 201) -> float:
+    def line_deviation(self, samples: int = 101) -> float:
         """Largest distance (m) of the tool position from the straight segment between the path's
         end positions, on ``samples`` uniform values of s (piecewise paths: per piece)."""
         T = self.ee_poses(np.linspace(0.0, 1.0, int(samples)))

@@ -80,6 +80,6 @@ class PiecewiseGeodesicPath(JointPath):
                 out[k][sel] = arr / w**k
         return tuple(out)
 
-    def line_deviation(self, samples: int = 201) -> float:
+    def line_deviation(self, samples: int = 101) -> float:
         """Largest distance (m) of the tool position from each piece's straight segment."""
         return max(piece.line_deviation(samples) for piece in self.pieces)
