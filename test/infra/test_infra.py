@@ -17,6 +17,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+from package_util import console_scripts
 
 from tools import netns
 from tools.process import bin_dir
@@ -164,17 +165,6 @@ def test_netns_script_without_command_is_usage_error() -> None:
 
 # --------------------------------------------------------------------------- packaging
 
-def _setup_py_console_scripts() -> dict[str, str]:
-    tree = ast.parse((ROOT / 'setup.py').read_text())
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Dict):
-            for key, value in zip(node.keys, node.values):
-                if isinstance(key, ast.Constant) and key.value == 'console_scripts':
-                    entries = ast.literal_eval(value)
-                    return dict(tuple(part.strip() for part in e.split('=', 1)) for e in entries)
-    raise AssertionError('no console_scripts in setup.py')
-
-
 def _setup_py_keyword(name: str) -> str:
     tree = ast.parse((ROOT / 'setup.py').read_text())
     constants = {t.id: n.value.value for n in tree.body if isinstance(n, ast.Assign)
@@ -221,13 +211,13 @@ def test_package_xml_declares_every_ros_package_the_code_imports() -> None:
 
 
 def test_console_scripts_are_all_accounted_for() -> None:
-    declared = _setup_py_console_scripts()
+    declared = console_scripts()
     assert declared == {**CHECKED_CONSOLE_SCRIPTS, **PENDING_CONSOLE_SCRIPTS}
 
 
 @pytest.mark.parametrize('script', sorted(CHECKED_CONSOLE_SCRIPTS))
 def test_console_script_module_and_function_exist(script: str) -> None:
-    target = _setup_py_console_scripts()[script]
+    target = console_scripts()[script]
     module_name, func_name = target.split(':')
     module_file = ROOT / (module_name.replace('.', '/') + '.py')
     assert module_file.is_file(), f'{script} -> {target}: {module_file} missing'

@@ -73,6 +73,14 @@ def rclpy(rclpy_runtime: RclpyRuntime) -> Any:
     return rclpy_runtime.node
 
 
+@pytest.fixture(scope='module')
+def helper(rclpy_runtime: RclpyRuntime, request: pytest.FixtureRequest) -> Iterator[Any]:
+    """A helper node for one test module (named after it), on the session's spinning executor."""
+    node = rclpy_runtime.create_node(request.module.__name__.rsplit('.', 1)[-1])
+    yield node
+    rclpy_runtime.destroy_node(node)
+
+
 @pytest.fixture
 def ros_node(rclpy_runtime: RclpyRuntime) -> Iterator[Any]:
     """A fresh helper node for one test, on the session's spinning executor; destroyed after."""

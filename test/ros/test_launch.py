@@ -8,7 +8,6 @@ and with real plans that each pair talks only to itself.
 """
 from __future__ import annotations
 
-import ast
 import importlib.util
 import re
 import sys
@@ -18,6 +17,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from package_util import console_scripts
 import yaml
 
 pytest.importorskip('rclpy')
@@ -65,18 +65,6 @@ def load_launch(path: Path = LAUNCH_FILE) -> types.ModuleType:
 def node_parameters(spec: Any) -> tuple[str, ...]:
     return {'geodesic_planner_node': params.PLANNER_PARAMETERS,
             'trajectory_processor_node': params.PROCESSOR_PARAMETERS}[spec.executable]
-
-
-def console_scripts() -> dict[str, str]:
-    """console_scripts of setup.py (name -> target), read from its source."""
-    tree = ast.parse((ROOT / 'setup.py').read_text())
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Dict):
-            for key, value in zip(node.keys, node.values):
-                if isinstance(key, ast.Constant) and key.value == 'console_scripts':
-                    entries = ast.literal_eval(value)
-                    return dict(tuple(part.strip() for part in e.split('=')) for e in entries)
-    raise AssertionError('no console_scripts in setup.py')
 
 
 # =========================================================================== the description

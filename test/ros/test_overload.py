@@ -7,7 +7,6 @@ message); refusals = the node's /diagnostics counter. The figures go to docs/rel
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -23,7 +22,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from tools.graph import StatusWatch
 
-from .launch import (Collector, RclpyRuntime, call_service, popen_node, wait_until,
+from .launch import (Collector, call_service, popen_node, wait_until,
                      warm_up_client)
 from .test_plan_trajectory import plan_request
 from .test_planner_node import GOAL_3R, START_3R, _rss_mb, pose_3r
@@ -35,13 +34,6 @@ DEADLINE = 120.0
 CLIENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
 OVERLOADED = 'planner overloaded'
-
-
-@pytest.fixture(scope='module')
-def helper(rclpy_runtime: RclpyRuntime) -> Iterator[Any]:
-    node = rclpy_runtime.create_node('overload_test')
-    yield node
-    rclpy_runtime.destroy_node(node)
 
 
 def flood(helper: Any, ns: str, params: dict[str, Any], tmp: Any, n_requests: int, n_clients: int,

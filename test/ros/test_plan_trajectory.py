@@ -34,7 +34,7 @@ import geodesic_planner
 from geodesic_planner.core.urdf import chain_from_urdf
 from geodesic_planner.ros import conversions as cv
 
-from .launch import Collector, RclpyRuntime, call_service, popen_node, wait_until, warm_up_client
+from .launch import Collector, call_service, popen_node, wait_until, warm_up_client
 from .test_planner_node import (GOAL_3R, OTHER_GOAL_3R, ROBOT_3R, START_3R,
                                 check_controller_contract, check_limits, check_line_phi_3r,
                                 fk_3r, ik_3r, pose_3r)
@@ -130,13 +130,6 @@ class Planner:
 def goal_3r(req: PlanTrajectory.Request) -> PlanTrajectory.Request:
     req.goal = pose_3r(*GOAL_3R)
     return req
-
-
-@pytest.fixture(scope='module')
-def helper(rclpy_runtime: RclpyRuntime) -> Iterator[Any]:
-    node = rclpy_runtime.create_node('plan_trajectory_test')
-    yield node
-    rclpy_runtime.destroy_node(node)
 
 
 @pytest.fixture(scope='module')

@@ -43,7 +43,7 @@ from geodesic_planner.ros import conversions as cv
 from geodesic_planner.core.transforms import make_transform, pose_error, so3_exp, so3_log
 from geodesic_planner.core.urdf import chain_from_urdf
 
-from .launch import (Collector, RclpyRuntime, call_service, popen_node, wait_for_service,
+from .launch import (Collector, call_service, popen_node, wait_for_service,
                      wait_for_subscribers, wait_until, warm_up_client)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
@@ -93,13 +93,6 @@ def diagnose(proc: Any) -> str:
 # =========================================================================== fixtures
 # Nodes are started with test/ros/launch.py (console script, own process group, log file); the
 # test process talks to them through a helper node on the session's spinning executor.
-
-@pytest.fixture(scope='module')
-def helper(rclpy_runtime: RclpyRuntime) -> Iterator[Any]:
-    node = rclpy_runtime.create_node('planner_node_test')
-    yield node
-    rclpy_runtime.destroy_node(node)
-
 
 class PlannerUnderTest:
     """A running planner node and the helper-side entities talking to it."""

@@ -1,7 +1,6 @@
 """Two nodes of one name (issue 13 #4): the newcomer refuses to start; the first keeps serving."""
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -15,20 +14,13 @@ from geodesic_planner_interfaces.srv import PlanTrajectory
 
 from tools.graph import StatusWatch
 
-from .launch import RclpyRuntime, call_service, popen_node, warm_up_client
+from .launch import call_service, popen_node, warm_up_client
 from .test_plan_trajectory import plan_request
 from .test_planner_node import GOAL_3R, START_3R, pose_3r
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
 
 DEADLINE = 60.0
-
-
-@pytest.fixture(scope='module')
-def helper(rclpy_runtime: RclpyRuntime) -> Iterator[Any]:
-    node = rclpy_runtime.create_node('unique_names_test')
-    yield node
-    rclpy_runtime.destroy_node(node)
 
 
 @pytest.mark.parametrize('executable, name', [('geodesic_planner_node', 'geodesic_planner'),
