@@ -201,13 +201,16 @@ def _wrap_into_limits(robot: Chain, q: np.ndarray) -> np.ndarray:
 
 
 def nearest_turn(robot: Chain, q: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """Shift revolute joints of solutions ``q`` (dof,) or (N, dof) by multiples of 2π (the pose
-    is unchanged) to the value nearest ``reference`` (dof,) (the IK seed) within the limits.
+    """Shift revolute joints of solutions ``q`` (dof,) or (N, dof), within the limits, by multiples
+    of 2π (the pose is unchanged) to the value nearest ``reference`` (dof,) (the IK seed) within
+    the limits.
 
     The short way from the seed is kept whenever the limits allow it: a wrist at 3.0 rad turned
     by +0.5 rad ends at 3.5, not at 3.5 − 2π. Joints with no such value are left as they are
     (with the reference within the limits, a turn farther than the two nearest lies outside them).
     """
+    if np.abs(q - reference).max() <= np.pi:                             # already the nearest turn
+        return q
     near = q + 2 * np.pi * np.round((reference - q) / (2 * np.pi))     # within π of the reference
     other = near - 2 * np.pi * np.sign(near - reference)                 # the next nearest turn
     lo, hi = robot.lower - 1e-9, robot.upper + 1e-9

@@ -57,6 +57,8 @@ def check_long_way(robot: Chain, q_a: np.ndarray, q_b: np.ndarray, what: str = '
         LimitError: naming the joint, its travel, the tool rotation and translation the move
             needs and the limit that blocks the short way.
     """
+    if np.abs(q_b - q_a).max() <= np.pi + LONG_WAY_EXCESS / 2:       # no joint beyond 5π/4: the hot path
+        return
     excess = long_way_excess(robot, q_a, q_b)
     i = int(np.argmax(excess))
     if not excess[i] > LONG_WAY_EXCESS:
