@@ -200,6 +200,24 @@ def _wrap_into_limits(robot: Chain, q: np.ndarray) -> np.ndarray:
     return q
 
 
+def nearest_turn(robot: Chain, q: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """Shift revolute joints of solutions ``q`` (dof,) or (N, dof), within the limits, by multiples
+    of 2π (the pose is unchanged) to the value nearest ``reference`` (dof,) (the IK seed) within
+    the limits.
+
+    The short way from the seed is kept whenever the limits allow it: a wrist at 3.0 rad turned
+    by +0.5 rad ends at 3.5, not at 3.5 − 2π. Joints with no such value are left as they are
+    (with the reference within the limits, a turn farther than the two nearest lies outside them).
+    """
+    if np.abs(q - reference).max() <= np.pi:                             # already the nearest turn
+        return q
+    near = q + 2 * np.pi * np.round((reference - q) / (2 * np.pi))     # within π of the reference
+    other = near - 2 * np.pi * np.sign(near - reference)                 # the next nearest turn
+    lo, hi = robot.lower - 1e-9, robot.upper + 1e-9
+    best = np.where((near >= lo) & (near <= hi), near, np.where((other >= lo) & (other <= hi), other, q))
+    return np.where(robot.revolute, best, q)
+
+
 def planar_3r_ik(T: np.ndarray, link_lengths: tuple[float, float, float] = (1.0, 1.0, 1.0),
                  elbow: int = 1) -> np.ndarray | None:
     """Closed-form IK of the planar 3R arm: pose in the xy plane -> (θ1, θ2, θ3), or None if unreachable.
@@ -255,11 +273,16 @@ def nearest_branch(candidates: np.ndarray, reference: np.ndarray) -> np.ndarray:
 
 
 def _exact_solution(robot: Chain, T_target: np.ndarray, q: np.ndarray, position_weight: float,
-                    orientation_weight: float) -> IKSolution | None:
-    """``q`` as the IK solution if it reaches the target exactly within the joint limits, else None."""
+                    orientation_weight: float, reference: np.ndarray | None = None) -> IKSolution | None:
+    """``q`` as the IK solution if it reaches the target exactly within the joint limits, else None.
+
+    With a ``reference`` (the seed), revolute joints take the turn nearest it (``nearest_turn``).
+    """
     q = _wrap_into_limits(robot, q)
     if not robot.within_limits(q, 1e-9):
         return None
+    if reference is not None:
+        q = nearest_turn(robot, q, reference)
     T = robot.fk(q)
     w = _weights12(position_weight, orientation_weight)
     r = float(np.linalg.norm((embed12(T) - embed12(T_target)) * w))
@@ -315,7 +338,8 @@ def solve_ik(
             if seed is not None:
                 closed.sort(key=lambda c: float(np.linalg.norm(c - q0)))
             preferred = [closed[0], q0, *closed[1:]]
-            closed_sol = _exact_solution(robot, T_target, closed[0], position_weight, orientation_weight)
+            closed_sol = _exact_solution(robot, T_target, closed[0], position_weight, orientation_weight,
+                                         None if seed is None else q0)
             if closed_sol is not None:
                 return closed_sol
     if len(preferred) == 1:
@@ -325,7 +349,7 @@ def solve_ik(
                                                 orientation_weight=orientation_weight, max_iterations=GN_ITERATIONS,
                                                 residual_tol=0.1 * EXACT_RESIDUAL, max_step=GN_MAX_STEP)
         if res_gn[0] <= EXACT_RESIDUAL:
-            gn_sol = _exact_solution(robot, T_target, q_gn[0], position_weight, orientation_weight)
+            gn_sol = _exact_solution(robot, T_target, q_gn[0], position_weight, orientation_weight, q0)
             if gn_sol is not None:
                 return gn_sol
     rng = np.random.default_rng(rng_seed)
@@ -353,6 +377,13 @@ def solve_ik(
             break
     ok = np.array([bool(robot.within_limits(qk, 1e-9)) for qk in qs])
     r = np.array(res_l)
+    # Solutions (within the limits and the tolerance) take the turn of each revolute joint nearest
+    # the seed; failed ones keep their window, so that a joint stuck at a limit is freed when the
+    # result seeds the next solve (the goal IK's continuation).
+    solved = ok & (r <= tol)
+    if solved.any():
+        turned = nearest_turn(robot, np.array(qs), q0)
+        qs = [turned[k] if solved[k] else qk for k, qk in enumerate(qs)]
     dist = np.array([float(np.linalg.norm(qk - q0)) for qk in qs])
     exact = ok & (r <= EXACT_RESIDUAL)
     within = ok & (r <= tol)

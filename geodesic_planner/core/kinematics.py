@@ -146,6 +146,9 @@ class Chain:
         if len(set(self.joint_names)) != len(self.joint_names):
             raise KinematicsError(f'robot {name!r}: duplicate joint names {self.joint_names}')
         self.joint_types: tuple[str, ...] = tuple(j.kind for j in self.joints)
+        #: True for the revolute joints, shape (dof,) (a 2π turn of them leaves the pose unchanged).
+        self.revolute: np.ndarray = ~self._prismatic
+        self.revolute.setflags(write=False)
         self.lower = np.array([j.lower for j in self.joints], dtype=float)
         self.upper = np.array([j.upper for j in self.joints], dtype=float)
         self.max_velocity = np.array([j.max_velocity for j in self.joints], dtype=float)

@@ -14,6 +14,7 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -23,8 +24,9 @@ import numpy as np
 from .errors import BVPError, LimitError, RequestError
 from .geodesic import (GeodesicEquations, GeodesicPath, SolverReport, collocation_rms, interpolation_error,
                        solve_geodesic_bvp)
-from .ik import IKSolution, dls_batch, gauss_newton_batch, nearest_branch, solve_ik
+from .ik import IKSolution, dls_batch, gauss_newton_batch, nearest_branch, nearest_turn, solve_ik
 from .kinematics import Chain, embed12
+from .long_way import check_long_way
 from .metric import DEFAULT_REDUNDANT_EPSILON, Metric
 from .polynomials import QuinticHermite
 from .transforms import check_transform, hat, line_slerp, so3_log
@@ -91,6 +93,9 @@ class GeodesicPlanner:
         ik_tolerance: allowed distance between a requested pose and the nearest reachable one.
         time_limit: wall-clock budget of one geodesic solve, s (None: unbounded).
         check_limits: reject boundary joints and solved paths outside the position limits.
+        allow_long_way: plan to a goal pose even when a revolute joint would take the long way
+            round because the short way is blocked by its limits (``long_way.check_long_way``);
+            False (default): refuse such a plan with a LimitError naming the joint.
 
     Raises:
         RequestError: unknown metric or invalid weights.
@@ -101,7 +106,7 @@ class GeodesicPlanner:
                  nodes: int = DEFAULT_NODES, tol: float = DEFAULT_TOL,
                  path_tolerance: float = DEFAULT_PATH_TOLERANCE, max_nodes: int = 2000,
                  ik_tolerance: float | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
-                 check_limits: bool = True) -> None:
+                 check_limits: bool = True, allow_long_way: bool = False) -> None:
         if epsilon is None:
             epsilon = DEFAULT_REDUNDANT_EPSILON if robot.dof > 6 else 0.0
         self.robot = robot
@@ -126,6 +131,7 @@ class GeodesicPlanner:
             raise RequestError(f'time_limit must be > 0 s or None, got {time_limit}')
         self.time_limit = time_limit
         self.check_limits = check_limits
+        self.allow_long_way = bool(allow_long_way)
         self._line_memo: tuple[bytes, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     # ------------------------------------------------------------------ ends
@@ -150,7 +156,8 @@ class GeodesicPlanner:
             q = step.q
         cont = self._ik(T_goal, q, tolerance, restarts=0, raise_on_failure=False)
         if cont.success:
-            return cont
+            # Seeded near the goal: take each revolute joint's turn nearest the start instead.
+            return dataclasses.replace(cont, q=nearest_turn(self.robot, cont.q, q_a))
         return self._ik(T_goal, q_a, tolerance)
 
     def resolve_ends(self, start: np.ndarray | None, goal: np.ndarray | None,
@@ -269,7 +276,9 @@ class GeodesicPlanner:
         Returns:
             GeodesicPath with ``solver`` diagnostics (time_ms covers IK, guess and solve).
         Raises:
-            RequestError, IKError, SingularMetricError, BVPError (all GeodesicPlannerError).
+            RequestError, IKError, SingularMetricError, BVPError (all GeodesicPlannerError);
+            LimitError: ends or path outside the limits, or a goal pose reached the long way
+            round (unless ``allow_long_way``).
         """
         t0 = time.perf_counter()
         q_a, q_b, ik_a, ik_b = self.resolve_ends(start, goal, start_joints, goal_joints, tolerance,
@@ -308,6 +317,8 @@ class GeodesicPlanner:
         if self.check_limits:
             self._check_limits(q_a, 'start joints')
             self._check_limits(q_b, 'goal joints')
+        if ik_b is not None and not self.allow_long_way:
+            check_long_way(self.robot, q_a, q_b, 'the goal pose')
         self.metric.check_regular(self.robot, np.stack([q_a, q_b]), ['the start', 'the goal'])
         s = np.linspace(0.0, 1.0, self.nodes)
         q_g, v_g, exact = self.initial_guess(q_a, q_b, s)

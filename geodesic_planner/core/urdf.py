@@ -13,7 +13,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from .errors import KinematicsError
+from .errors import QUOTE_LIMIT, KinematicsError, quoted
 from .kinematics import DEFAULT_MAX_ACCELERATION, DEFAULT_MAX_VELOCITY, PRISMATIC, REVOLUTE, Chain, Joint
 
 #: Largest URDF accepted, bytes of text (real robot descriptions are well under 1 MB).
@@ -22,15 +22,26 @@ MAX_URDF_BYTES = 10_000_000
 MAX_ELEMENTS = 20_000
 
 
+#: Names listed in a message before the rest is only counted.
+NAMES_SHOWN = 5
+
+
+def _names(names: list[str]) -> str:
+    """Up to NAMES_SHOWN names, each cut to the quote limit, then how many more (bounded messages)."""
+    shown = ', '.join(quoted(n) for n in names[:NAMES_SHOWN])
+    more = f', ... ({len(names) - NAMES_SHOWN} more)' if len(names) > NAMES_SHOWN else ''
+    return f'[{shown}{more}]'
+
+
 def _floats(text: str | None, n: int, default: list[float], what: str) -> np.ndarray:
     if text is None:
         return np.array(default, dtype=float)
     try:
         vals = [float(x) for x in text.split()]
     except ValueError as err:
-        raise KinematicsError(f'URDF: {what}: not numbers: {text!r}') from err
+        raise KinematicsError(f'URDF: {what}: not numbers: {quoted(text)}') from err
     if len(vals) != n or not np.all(np.isfinite(vals)):
-        raise KinematicsError(f'URDF: {what}: expected {n} finite numbers, got {text!r}')
+        raise KinematicsError(f'URDF: {what}: expected {n} finite numbers, got {quoted(text)}')
     return np.array(vals)
 
 
@@ -61,7 +72,7 @@ def _check_acyclic(joints_by_child: dict[str, ET.Element]) -> None:
         link: str | None = start
         while link is not None and state.get(link) != 2:
             if state.get(link) == 1:
-                raise KinematicsError(f'URDF: the links form a cycle through {link!r} (a URDF must be a tree)')
+                raise KinematicsError(f'URDF: the links form a cycle through {quoted(link)} (a URDF must be a tree)')
             state[link] = 1
             walk.append(link)
             joint = joints_by_child.get(link)
@@ -94,7 +105,7 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
     except ET.ParseError as err:
         raise KinematicsError(f'URDF: not valid XML ({err})') from err
     if root.tag != 'robot':
-        raise KinematicsError(f'URDF: root element is <{root.tag}>, expected <robot>')
+        raise KinematicsError(f'URDF: root element is <{root.tag[:QUOTE_LIMIT]}>, expected <robot>')
     model = name or root.get('name') or 'urdf_robot'
     n_elements = len(root.findall('link')) + len(root.findall('joint'))
     if n_elements > MAX_ELEMENTS:
@@ -111,7 +122,7 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
         if not p or not c:
             raise KinematicsError(f'URDF: joint {j.get("name")!r} lacks a parent or child link')
         if c in joints_by_child:
-            raise KinematicsError(f'URDF: link {c!r} has two parent joints (not a tree)')
+            raise KinematicsError(f'URDF: link {quoted(c)} has two parent joints (not a tree)')
         joints_by_child[c] = j
         parents[c] = p
         children.setdefault(p, []).append(c)
@@ -120,29 +131,30 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
     roots = [lk for lk in children if lk not in joints_by_child]
     if base_link is None:
         if len(roots) != 1:
-            raise KinematicsError(f'URDF: expected one root link, found {roots}; set base_link')
+            raise KinematicsError(f'URDF: the links are not connected: expected one root link, found '
+                                  f'{len(roots)}: {_names(roots)}; set base_link')
         base_link = roots[0]
     if base_link not in children:
-        raise KinematicsError(f'URDF: base_link {base_link!r} is not a link of {model!r}')
+        raise KinematicsError(f'URDF: base_link {quoted(base_link)} is not a link of {quoted(model)}')
     if tip_link is None:
         # Follow the tree down from base_link; it must not branch.
         link = base_link
         while children[link]:
             if len(children[link]) > 1:
                 raise KinematicsError(
-                    f'URDF: not a serial chain: link {link!r} has {len(children[link])} children '
-                    f'{children[link]}; set tip_link')
+                    f'URDF: not a serial chain: link {quoted(link)} has {len(children[link])} children '
+                    f'{_names(children[link])}; set tip_link')
             link = children[link][0]
         tip_link = link
     if tip_link not in children:
-        raise KinematicsError(f'URDF: tip_link {tip_link!r} is not a link of {model!r}')
+        raise KinematicsError(f'URDF: tip_link {quoted(tip_link)} is not a link of {quoted(model)}')
     # Walk up from tip to base.
     path = []
     link = tip_link
     while link != base_link:
         found = joints_by_child.get(link)
         if found is None:
-            raise KinematicsError(f'URDF: tip_link {tip_link!r} is not below base_link {base_link!r}')
+            raise KinematicsError(f'URDF: tip_link {quoted(tip_link)} is not below base_link {quoted(base_link)}')
         path.append(found)
         link = parents[link]
     path.reverse()
@@ -153,18 +165,18 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
         jtype = j.get('type', '')
         org = j.find('origin')
         T = origin_transform(
-            _floats(org.get('xyz') if org is not None else None, 3, [0, 0, 0], f'joint {jname!r} origin xyz'),
-            _floats(org.get('rpy') if org is not None else None, 3, [0, 0, 0], f'joint {jname!r} origin rpy'))
+            _floats(org.get('xyz') if org is not None else None, 3, [0, 0, 0], f'joint {quoted(jname)} origin xyz'),
+            _floats(org.get('rpy') if org is not None else None, 3, [0, 0, 0], f'joint {quoted(jname)} origin rpy'))
         fixed[-1] = fixed[-1] @ T
         if jtype == 'fixed':
             continue
         if jtype not in ('revolute', 'continuous', 'prismatic'):
-            raise KinematicsError(f'URDF: joint {jname!r} has unsupported type {jtype!r} '
+            raise KinematicsError(f'URDF: joint {quoted(jname)} has unsupported type {quoted(jtype)} '
                                   '(supported: revolute, continuous, prismatic, fixed)')
         if j.find('mimic') is not None:
-            raise KinematicsError(f'URDF: joint {jname!r} is a mimic joint (unsupported)')
+            raise KinematicsError(f'URDF: joint {quoted(jname)} is a mimic joint (unsupported)')
         ax = j.find('axis')
-        axis = _floats(ax.get('xyz') if ax is not None else None, 3, [1, 0, 0], f'joint {jname!r} axis')
+        axis = _floats(ax.get('xyz') if ax is not None else None, 3, [1, 0, 0], f'joint {quoted(jname)} axis')
         lim = j.find('limit')
         lower, upper, vel = -np.inf, np.inf, DEFAULT_MAX_VELOCITY
         if lim is not None:
@@ -174,19 +186,19 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
                     upper = float(lim.get('upper', 0.0))
                 v = float(lim.get('velocity', DEFAULT_MAX_VELOCITY))
             except ValueError as err:
-                raise KinematicsError(f'URDF: joint {jname!r}: bad <limit> ({err})') from err
+                raise KinematicsError(f'URDF: joint {quoted(jname)}: bad <limit> ({quoted(err)})') from err
             if not (np.isfinite(v) and (jtype == 'continuous' or (np.isfinite(lower) and np.isfinite(upper)))):
-                raise KinematicsError(f'URDF: joint {jname!r}: <limit> values must be finite '
+                raise KinematicsError(f'URDF: joint {quoted(jname)}: <limit> values must be finite '
                                       f'(lower {lower:g}, upper {upper:g}, velocity {v:g})')
             vel = v if v > 0 else DEFAULT_MAX_VELOCITY
         elif jtype != 'continuous':
-            raise KinematicsError(f'URDF: joint {jname!r} ({jtype}) needs a <limit> element')
+            raise KinematicsError(f'URDF: joint {quoted(jname)} ({jtype}) needs a <limit> element')
         lower, upper = _soft_limits(j.find('safety_controller'), jname, lower, upper)
         kind = PRISMATIC if jtype == 'prismatic' else REVOLUTE
         joints.append(Joint(jname, kind, axis, lower, upper, vel, DEFAULT_MAX_ACCELERATION))
         fixed.append(np.eye(4))
     if not joints:
-        raise KinematicsError(f'URDF: no actuated joint between {base_link!r} and {tip_link!r}')
+        raise KinematicsError(f'URDF: no actuated joint between {quoted(base_link)} and {quoted(tip_link)}')
     chain = Chain(model, joints, fixed, base_link=base_link, tip_link=tip_link)
     return Chain(model, joints, fixed, base_link=base_link, tip_link=tip_link, home=regular_home(chain))
 
@@ -202,12 +214,12 @@ def _soft_limits(safety: ET.Element | None, jname: str, lower: float, upper: flo
         soft_lower = float(safety.get('soft_lower_limit', '-inf'))
         soft_upper = float(safety.get('soft_upper_limit', 'inf'))
     except ValueError as err:
-        raise KinematicsError(f'URDF: joint {jname!r}: bad <safety_controller> ({err})') from err
+        raise KinematicsError(f'URDF: joint {quoted(jname)}: bad <safety_controller> ({quoted(err)})') from err
     if np.isnan(soft_lower) or np.isnan(soft_upper):
-        raise KinematicsError(f'URDF: joint {jname!r}: <safety_controller> soft limits must not be NaN')
+        raise KinematicsError(f'URDF: joint {quoted(jname)}: <safety_controller> soft limits must not be NaN')
     lo, hi = max(lower, soft_lower), min(upper, soft_upper)
     if not lo < hi:
-        raise KinematicsError(f'URDF: joint {jname!r}: soft limits [{soft_lower:g}, {soft_upper:g}] leave no '
+        raise KinematicsError(f'URDF: joint {quoted(jname)}: soft limits [{soft_lower:g}, {soft_upper:g}] leave no '
                               f'room inside the limits [{lower:g}, {upper:g}]')
     return lo, hi
 

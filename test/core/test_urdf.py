@@ -226,7 +226,8 @@ _MALFORMED = [
     (GOOD.replace('<parent link="a"/>', ''), "joint 'j' lacks a parent or child link"),
     (GOOD.replace('upper="1"', 'upper="x"'), r"joint 'j': bad <limit>"),
     (GOOD.replace('upper="1"', 'upper="-2"'), 'lower limit > upper limit'),
-    (GOOD.replace('</robot>', '<link name="c"/></robot>'), r"expected one root link, found \['a', 'c'\]"),
+    (GOOD.replace('</robot>', '<link name="c"/></robot>'),
+     r"not connected: expected one root link, found 2: \['a', 'c'\]"),
     (GOOD.replace('</robot>', '<link name="c"/><joint name="k" type="fixed"><parent link="c"/>'
                   '<child link="b"/></joint></robot>'), "link 'b' has two parent joints"),
     (GOOD.replace('type="revolute"', 'type="floating"'), "unsupported type 'floating'"),
@@ -354,3 +355,23 @@ def test_model_files_must_be_regular_bounded_utf8(tmp_path):
     good = tmp_path / 'good.urdf'
     good.write_text(GOOD)
     assert load_robot(str(good)).dof == 1
+
+
+@pytest.mark.parametrize(('xml', 'match'), [
+    # 5000 separate links (not connected): the message counts them, it does not list them all
+    ('<robot name="r">' + ''.join(f'<link name="l{i}"/>' for i in range(5000)) + '</robot>',
+     r"not connected: expected one root link, found 5000: \['l0', 'l1', 'l2', 'l3', 'l4', \.\.\. \(4995 more\)\]"),
+    # a cycle through a link with a 100 000-character name
+    (_graph_urdf([('x' * 100_000, 'y' * 100_000), ('y' * 100_000, 'x' * 100_000)]),
+     r"cycle through '([xy])\1{79}'\.\.\. \(100000 characters\)"),
+    # a link with 3000 children
+    (_graph_urdf([('a', f'c{i}') for i in range(3000)]), r'has 3000 children \[.*\(2995 more\)\]; set tip_link'),
+    # a 100 000-character root tag
+    ('<' + 'r' * 100_000 + '/>', r'root element is <r{80}>, expected <robot>'),
+], ids=['disconnected', 'long_name_cycle', 'many_children', 'long_root_tag'])
+def test_regression_model_errors_are_bounded(xml: str, match: str) -> None:
+    """Issue 13 #1/#9: an error about a hostile model names its cause in a bounded message
+    (before, the root list, the children list and the names were echoed in full)."""
+    with pytest.raises(KinematicsError, match=match) as info:
+        chain_from_urdf(xml)
+    assert len(str(info.value)) < 1000
