@@ -73,4 +73,3 @@ def test_long_way_refused_then_a_normal_plan(node: tuple[Any, Any]) -> None:
     assert_allclose(arr.positions[0], Q0, atol=1e-9)
     assert_allclose(arr.positions[-1], expected, atol=1e-8)
     assert proc.alive()
-
