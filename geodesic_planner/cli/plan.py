@@ -1,4 +1,5 @@
-"""``geodesic-plan REQUEST.yaml [--samples N] [--output FILE.json]``: plan a geodesic from a YAML request."""
+"""``geodesic-plan REQUEST.yaml [--samples N] [--output FILE.json] [--method auto|collocation]``: plan a
+geodesic from a YAML request."""
 from __future__ import annotations
 
 import argparse
@@ -9,6 +10,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..core.errors import GeodesicPlannerError
+from ..core.planner import check_method
 from ..core.path import JointPath
 from ..core.transforms import matrix_to_quat
 
@@ -48,12 +50,16 @@ def plan_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('request', help='YAML request (robot, start/goal poses or joints)')
     parser.add_argument('--samples', type=int, default=101, help='samples of s in [0, 1] (default 101)')
     parser.add_argument('--output', help='write JSON here (default: stdout)')
+    parser.add_argument('--method', help="'auto' (default: the request's, else the pull-back where it "
+                        "applies) or 'collocation' (the paper's route: IK only at the two ends)")
     args = parser.parse_args(argv)
     if args.samples < 2:
         print('ERROR: --samples must be at least 2', file=sys.stderr)
         return 1
     try:
         req = load_request(args.request)
+        if args.method is not None:
+            req.method = check_method(args.method)
         path = req.plan()
         data = path_to_dict(path, args.samples)
         text = json.dumps(data, indent=1)
@@ -61,7 +67,7 @@ def plan_main(argv: Sequence[str] | None = None) -> int:
             with open(args.output, 'w', encoding='utf-8') as fh:
                 fh.write(text + '\n')
             sol = path.solver
-            print(f'{req.robot.name}: {sol.iterations} iterations, {sol.mesh_size} nodes, max residual '
+            print(f'{req.robot.name}: {sol.method}, {sol.iterations} iterations, {sol.mesh_size} nodes, max residual '
                   f'{sol.max_residual:.2g}, {sol.time_ms:.1f} ms -> {args.output}', file=sys.stderr)
         else:
             print(text)

@@ -16,6 +16,7 @@ from .kinematics import Chain
 from .transforms import segment_distance
 
 if TYPE_CHECKING:
+    from ..timing.law import TimeLaw
     from ..timing.trajectory import Trajectory
 
 
@@ -90,8 +91,8 @@ class JointPath(ABC):
 
     def timed(self, max_velocity: npt.ArrayLike | None = None, max_acceleration: npt.ArrayLike | None = None,
               duration: float | None = None, *, max_tool_speed: float | None = None,
-              max_tool_angular_speed: float | None = None) -> Trajectory:
-        """Rest-to-rest time parameterization under per-joint limits (see timing.parameterize).
+              max_tool_angular_speed: float | None = None, law: TimeLaw | None = None) -> Trajectory:
+        """Time parameterization under per-joint limits (see timing.parameterize).
 
         The one call from core up into the timing layer: a function-local import, so that core
         never imports timing at module level (timing reads paths only through its PathLike
@@ -105,10 +106,12 @@ class JointPath(ABC):
                 None: no limit.
             max_tool_angular_speed: limit on the norm of the tool's angular velocity, rad/s;
                 None: no limit.
+            law: the time law (``timing.TimeLaw``); None: the smooth rest-to-rest law.
+                ``timing.ConstantSpeed(ramp=...)`` keeps the metric speed constant (Lemma 2).
         Raises:
             LimitError: an invalid limit (the message names it) or a duration below the minimum.
         """
         from ..timing.parameterize import time_parameterize
         return time_parameterize(self, max_velocity=max_velocity, max_acceleration=max_acceleration,
-                                 duration=duration, max_tool_speed=max_tool_speed,
+                                 duration=duration, law=law, max_tool_speed=max_tool_speed,
                                  max_tool_angular_speed=max_tool_angular_speed)

@@ -11,6 +11,9 @@
 4. Otherwise (redundant arms with ε > 0, arms that cannot follow the line, the 'position'
    metric): the geodesic BVP of the metric, solved by collocation
    from that guess (geodesic.solve_geodesic_bvp): method 'collocation'.
+
+``method='collocation'`` (plan, plan_through) skips steps 2-3: the paper's own route, IK only at the
+two ends, the BVP solved from the straight line in joint space.
 """
 from __future__ import annotations
 
@@ -60,6 +63,16 @@ DEFAULT_PATH_TOLERANCE = 1e-9
 PULLBACK_ROUNDS = 4
 #: A refined interval aims at this fraction of path_tolerance.
 PULLBACK_AIM = 0.1
+#: Values of ``method``: 'auto' (the pull-back where it applies, else collocation) or
+#: 'collocation' (the paper's IK-free route: IK at the two ends only).
+METHODS = ('auto', 'collocation')
+
+
+def check_method(method: object) -> str:
+    """``method`` if it is one of METHODS; RequestError naming it otherwise."""
+    if not (isinstance(method, str) and method in METHODS):
+        raise RequestError(f"method must be one of {', '.join(repr(m) for m in METHODS)}, got {method!r}")
+    return method
 
 
 def split_intervals(s: np.ndarray, parts: np.ndarray) -> np.ndarray:
@@ -265,7 +278,7 @@ class GeodesicPlanner:
     # ------------------------------------------------------------------ plan
     def plan(self, start: np.ndarray | None, goal: np.ndarray | None, start_joints: object = None,
              goal_joints: object = None, *, tolerance: float | None = None,
-             start_seed: object = None) -> GeodesicPath:
+             start_seed: object = None, method: str = 'auto') -> GeodesicPath:
         """Geodesic from start to goal.
 
         Args:
@@ -273,6 +286,9 @@ class GeodesicPlanner:
             start_joints, goal_joints: (dof,) joint boundary conditions (override the poses).
             tolerance: allowed distance to the nearest reachable pose (default: planner's).
             start_seed: (dof,) seed of the start pose's IK (e.g. the current joint state).
+            method: 'auto' (default): the task-space geodesic pulled back by IK at every mesh node
+                where that is the geodesic, else collocation; 'collocation': the paper's route,
+                IK only at the two ends, the geodesic BVP solved from the joint-space line.
         Returns:
             GeodesicPath with ``solver`` diagnostics (time_ms covers IK, guess and solve).
         Raises:
@@ -281,13 +297,14 @@ class GeodesicPlanner:
             round (unless ``allow_long_way``).
         """
         t0 = time.perf_counter()
+        method = check_method(method)
         q_a, q_b, ik_a, ik_b = self.resolve_ends(start, goal, start_joints, goal_joints, tolerance,
                                                  start_seed)
-        return self._solve(q_a, q_b, ik_a, ik_b, t0)
+        return self._solve(q_a, q_b, ik_a, ik_b, t0, method)
 
-    def plan_joints(self, q_a: object, q_b: object) -> GeodesicPath:
-        """Geodesic between two joint configurations."""
-        return self.plan(None, None, start_joints=q_a, goal_joints=q_b)
+    def plan_joints(self, q_a: object, q_b: object, *, method: str = 'auto') -> GeodesicPath:
+        """Geodesic between two joint configurations (``method`` as in :meth:`plan`)."""
+        return self.plan(None, None, start_joints=q_a, goal_joints=q_b, method=method)
 
     def _check_limits(self, q: np.ndarray, what: str) -> None:
         """Raise LimitError if joint positions q (dof,) lie outside the robot's limits."""
@@ -313,7 +330,7 @@ class GeodesicPlanner:
                              f'{q[k, i]:.6g} at s = {s[k]:.3f} (limits [{r.lower[i]:.6g}, {r.upper[i]:.6g}])')
 
     def _solve(self, q_a: np.ndarray, q_b: np.ndarray, ik_a: IKSolution | None,
-               ik_b: IKSolution | None, t0: float) -> GeodesicPath:
+               ik_b: IKSolution | None, t0: float, method: str = 'auto') -> GeodesicPath:
         if self.check_limits:
             self._check_limits(q_a, 'start joints')
             self._check_limits(q_b, 'goal joints')
@@ -321,7 +338,13 @@ class GeodesicPlanner:
             check_long_way(self.robot, q_a, q_b, 'the goal pose')
         self.metric.check_regular(self.robot, np.stack([q_a, q_b]), ['the start', 'the goal'])
         s = np.linspace(0.0, 1.0, self.nodes)
-        q_g, v_g, exact = self.initial_guess(q_a, q_b, s)
+        if method == 'collocation':
+            # No IK between the ends: the straight line in joint space is the guess.
+            q_g = q_a + s[:, None] * (q_b - q_a)
+            v_g = np.broadcast_to(q_b - q_a, q_g.shape).copy()
+            exact = False
+        else:
+            q_g, v_g, exact = self.initial_guess(q_a, q_b, s)
         if exact:
             path = self._pullback_path(q_a, q_b, s, q_g, v_g, ik_a, ik_b, t0)
             if path is not None:
@@ -405,19 +428,22 @@ class GeodesicPlanner:
         return s, q, v
 
     def plan_through(self, poses: Sequence[np.ndarray | None], start_joints: object = None, *,
-                     tolerance: float | None = None, start_seed: object = None) -> PiecewiseGeodesicPath:
+                     tolerance: float | None = None, start_seed: object = None,
+                     method: str = 'auto') -> PiecewiseGeodesicPath:
         """Piecewise geodesic through via points with the paper's trajectory scaling (eq. 10).
 
         Args:
             poses: [T0, T1, ..., TN] 4x4 transforms; T0 may be None when start_joints is given.
             start_joints: joints at T0 (then T0 is only informational).
             start_seed: (dof,) seed of T0's IK (e.g. the current joint state).
+            method: as in :meth:`plan`, for every piece ('collocation': IK at the via points only).
         Returns:
             PiecewiseGeodesicPath with the same evaluate(s) contract over s ∈ [0, 1].
         Raises:
             RequestError: fewer than 2 poses; any error of plan().
         """
         from .piecewise import PiecewiseGeodesicPath
+        method = check_method(method)
         poses = list(poses)
         if len(poses) < 2:
             raise RequestError(f'plan_through: needs at least 2 poses (start and goal), got {len(poses)}')
@@ -438,6 +464,7 @@ class GeodesicPlanner:
         for i, T in enumerate(targets, start=1):
             ik_b = self._goal_ik(T, q_prev, tolerance)
             q_next = snap_same(q_prev, ik_b.q)
-            pieces.append(self._solve(q_prev, q_next, ik_a if i == 1 else None, ik_b, time.perf_counter()))
+            pieces.append(self._solve(q_prev, q_next, ik_a if i == 1 else None, ik_b, time.perf_counter(),
+                                      method))
             q_prev = q_next
         return PiecewiseGeodesicPath(pieces, (time.perf_counter() - t0) * 1e3)

@@ -8,6 +8,7 @@
     goal: {...}                 # or start_joints: [...] / goal_joints: [...]
     via: [{...}, ...]           # optional intermediate poses (piecewise geodesic)
     tolerance: 0.001            # optional: allowed distance to the nearest reachable pose
+    method: auto                # optional: auto (pull-back where it applies) | collocation (IK at the ends only)
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ import yaml
 
 from ..core.errors import RequestError
 from ..core.kinematics import Chain
-from ..core.planner import GeodesicPlanner
+from ..core.planner import GeodesicPlanner, check_method
 from ..core.robots import load_robot
 from ..core.transforms import pose_from_mapping
 
@@ -30,7 +31,8 @@ if TYPE_CHECKING:
     from ..core.piecewise import PiecewiseGeodesicPath
 
 KNOWN_KEYS = {'robot', 'metric', 'position_weight', 'orientation_weight', 'epsilon', 'start', 'goal',
-              'start_joints', 'goal_joints', 'via', 'tolerance', 'base_link', 'tip_link', 'description'}
+              'start_joints', 'goal_joints', 'via', 'tolerance', 'base_link', 'tip_link', 'description',
+              'method'}
 
 
 @dataclass
@@ -45,6 +47,7 @@ class PlanRequest:
     via: list[np.ndarray] = field(default_factory=list)
     tolerance: float | None = None
     planner_options: dict[str, Any] = field(default_factory=dict)
+    method: str = 'auto'
 
     def planner(self) -> GeodesicPlanner:
         """A planner for this request's robot and metric options."""
@@ -61,9 +64,10 @@ class PlanRequest:
             if self.goal is None:
                 raise RequestError('via points need a goal pose (goal_joints cannot end a via sequence)')
             return planner.plan_through([self.start, *self.via, self.goal], self.start_joints,
-                                        tolerance=self.tolerance, start_seed=start_seed)
+                                        tolerance=self.tolerance, start_seed=start_seed,
+                                        method=self.method)
         return planner.plan(self.start, self.goal, self.start_joints, self.goal_joints,
-                            tolerance=self.tolerance, start_seed=start_seed)
+                            tolerance=self.tolerance, start_seed=start_seed, method=self.method)
 
 
 def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
@@ -102,8 +106,12 @@ def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
         if key in data:
             opts[key] = _number(data[key], key)
     tol = None if data.get('tolerance') is None else _number(data['tolerance'], 'tolerance')
+    try:
+        method = check_method(data.get('method', 'auto'))
+    except RequestError as err:
+        raise RequestError(f'request: {err}') from err
     req = PlanRequest(robot, pose('start'), pose('goal'), joints('start_joints'), joints('goal_joints'),
-                      [pose_from_mapping(v, f'via[{i}]') for i, v in enumerate(via)], tol, opts)
+                      [pose_from_mapping(v, f'via[{i}]') for i, v in enumerate(via)], tol, opts, method)
     if req.start is None and req.start_joints is None:
         raise RequestError('request: give start (a Pose) or start_joints')
     if req.goal is None and req.goal_joints is None:

@@ -439,7 +439,7 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
     t1 = time.perf_counter()
     fv = config.velocity_scaling * (velocity_factor or config.default_velocity_factor)
     fa = config.velocity_scaling ** 2 * (acceleration_factor or config.default_acceleration_factor)
-    tool: dict[str, float] = {}
+    tool: dict[str, Any] = {}  # keyword arguments of path.timed (floats here)
     if config.max_tool_speed is not None:
         tool['max_tool_speed'] = config.max_tool_speed * fv
     if config.max_tool_angular_speed is not None:

@@ -1,10 +1,12 @@
 """Time laws: timing of a joint path under per-joint limits, the Trajectory type and its validator.
 
-Layers inside: sampling -> topp -> smoothing (the rest-to-rest law) behind the law protocol;
+Layers inside: sampling -> topp -> smoothing (the rest-to-rest law) and constant_speed (Lemma 2) behind the
+law protocol;
 ``trajectory`` is what every law returns; ``validate`` holds joint_trajectory_controller's rules.
 """
 from __future__ import annotations
 
+from .constant_speed import ConstantSpeed
 from .law import JointLimits, PathLike, TimeLaw, TimeScaling
 from .parameterize import time_parameterize
 from .smoothing import SmoothRestToRest
@@ -12,6 +14,7 @@ from .trajectory import Trajectory
 from .validate import check_trajectory, trajectory_problems
 
 __all__ = [
+    'ConstantSpeed',
     'JointLimits',
     'PathLike',
     'SmoothRestToRest',

@@ -36,7 +36,8 @@ def time_parameterize(path: PathLike, max_velocity: npt.ArrayLike | None = None,
         max_acceleration: per-joint limit (dof,) or scalar, rad/s^2 (m/s^2); None: robot's.
         duration: if given, the law is stretched uniformly to exactly this duration, s.
         law: the time law; None: ``SmoothRestToRest(grid_points, refine, smoothing,
-            check_samples)`` (those four options only configure this default).
+            check_samples)`` (those four options only configure this default). Another law, e.g.
+            :class:`~.constant_speed.ConstantSpeed` (constant metric speed, the paper's Lemma 2).
         grid_points: number of uniform s intervals at which the path is evaluated.
         refine: the time-optimal pass runs on ``refine`` times finer steps.
         smoothing: acceleration-ramp time as a fraction of the time-optimal duration, in (0, 1].

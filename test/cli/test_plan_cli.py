@@ -133,6 +133,30 @@ def test_paper_3r_json_matches_exact_geodesic(paper_3r_json):
     assert np.abs(np.array(d['jerks']) - dddq).max() <= 1e-4 * max(1.0, np.abs(dddq).max())
 
 
+def test_method_collocation_from_flag_and_from_request(tmp_path, capsys):
+    """``--method collocation`` (and the request's ``method:`` key) force the IK-free route; the
+    path is still the exact geodesic of the paper's example (the same oracle as above)."""
+    from geodesic_planner.cli.plan import plan_main
+    oracle = Oracle3R(os.path.join(EXAMPLES, 'paper_3r.yaml'))
+    with open(os.path.join(EXAMPLES, 'paper_3r.yaml'), encoding='utf-8') as fh:
+        req = yaml.safe_load(fh)
+    (tmp_path / 'colloc.yaml').write_text(yaml.safe_dump({**req, 'method': 'collocation'}))
+    runs = {'flag': [os.path.join(EXAMPLES, 'paper_3r.yaml'), '--method', 'collocation'],
+            'key': [str(tmp_path / 'colloc.yaml')],
+            'flag over key': [str(tmp_path / 'colloc.yaml'), '--method', 'auto']}
+    for name, args in runs.items():
+        out = tmp_path / f'{name}.json'
+        assert plan_main([*args, '--samples', '101', '--output', str(out)]) == 0, name
+        summary = capsys.readouterr().err
+        d = json.loads(out.read_text())
+        method = 'pullback' if name == 'flag over key' else 'collocation'
+        assert d['solver']['method'] == method, name
+        assert summary.startswith(f'planar_3r: {method}, '), summary
+        s = np.array(d['s'])
+        assert np.abs(np.array(d['positions']) - oracle.q(s)).max() <= 1e-5, name
+        assert np.abs(np.array(d['ee_positions']) - oracle.pose(s)[0]).max() <= 1e-6, name
+
+
 def test_stdout_mode_and_samples(tmp_path):
     proc = run([os.path.join(EXAMPLES, 'paper_rrpp_joints.yaml'), '--samples', 5], tmp_path)
     assert proc.returncode == 0, proc.stderr
@@ -193,6 +217,9 @@ FAILURES = {
     'missing_file': (None, 'cannot read request'),
     'samples': ('samples', '--samples must be at least 2'),
     'bad_urdf': ('bad_urdf', 'URDF: not valid XML'),
+    'bad_method_key': ({'robot': 'planar_3r', 'start': A, 'goal': B, 'method': 'newton'},
+                       "request: method must be one of 'auto', 'collocation', got 'newton'"),
+    'bad_method_flag': ('method_flag', "method must be one of 'auto', 'collocation', got 'pullback'"),
 }
 #: Run as real subprocesses of the console script (the rest in-process through plan_main, the
 #: same code path, to keep the suite fast on 2 cores).
@@ -205,6 +232,8 @@ def write_case(d, name):
         return ['does_not_exist.yaml']
     if content == 'samples':
         return [os.path.join(EXAMPLES, 'paper_3r.yaml'), '--samples', '1']
+    if content == 'method_flag':
+        return [os.path.join(EXAMPLES, 'paper_3r.yaml'), '--method', 'pullback']
     if content == 'bad_urdf':
         (d / 'broken.urdf').write_text('<robot name="broken"><link name="a"></robot>')
         content = {'robot': 'broken.urdf', 'start_joints': [0.0], 'goal_joints': [0.1]}

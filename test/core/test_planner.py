@@ -588,3 +588,76 @@ def test_every_accepted_weight_ratio_plans(robot_name, ratio):
         path = planner.plan(None, robot.fk(q1), start_joints=q0)
         dp, dr = pose_error(path.ee_poses(np.array([1.0]))[0], robot.fk(q1))
         assert dp < 1e-6 and dr < 1e-6
+
+
+# ---------------------------------------------------------------------- method='collocation'
+def _no_pullback(planner: GeodesicPlanner, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Make any IK between the two ends (the pull-back's batched IK at the mesh nodes) fail loudly."""
+    def refuse(*args: Any, **kwargs: Any) -> Any:
+        raise AssertionError('IK at the mesh nodes with method="collocation"')
+    monkeypatch.setattr(planner, 'initial_guess', refuse)
+    monkeypatch.setattr('geodesic_planner.core.planner.gauss_newton_batch', refuse)
+    monkeypatch.setattr('geodesic_planner.core.planner.dls_batch', refuse)
+
+
+@pytest.mark.parametrize('robot_name', ['planar_3r', 'ur5e'])
+def test_method_collocation_uses_ik_only_at_the_ends(robot_name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where the default takes the pull-back, 'collocation' solves the BVP from the two IK ends."""
+    robot = load_robot(robot_name)
+    planner = GeodesicPlanner(robot, time_limit=SOLVE_TIME_LIMIT)
+    if robot_name == 'planar_3r':
+        T_a, T_b = robot.fk(np.array([Q3_A, Q3_B]))
+    else:
+        T_a, T_b = _line_move(robot, np.array([0.3, -1.2, 1.4, -1.5, -1.4, 0.2]), [0.2, -0.1, 0.15],
+                              [0.0, 0.0, np.pi / 6])
+    assert planner.plan(T_a, T_b).solver.method == 'pullback'
+    _no_pullback(planner, monkeypatch)
+    path = planner.plan(T_a, T_b, method='collocation')
+    rep = path.solver
+    assert rep.method == 'collocation' and rep.status == 0 and rep.iterations >= 1
+    assert np.isnan(rep.path_error)
+    # Ends at the goal pose, geodesic equations (library residual and finite differences of fk),
+    # constant metric speed: the same checks as every planned path.
+    check_path(planner, path, None, None, T_a, T_b)
+    assert_allclose(robot.fk(path.q_goal), T_b, atol=1e-9)
+
+
+def test_methods_agree_on_the_paper_3r_example() -> None:
+    """The pull-back (exact to path_tolerance, 1e-9 m) and collocation (tol 1e-5, which keeps the
+    tool within about 1e-8 m of the geodesic) give the same path."""
+    robot = load_robot('planar_3r')
+    planner = GeodesicPlanner(robot)
+    T_a, T_b = robot.fk(np.array([Q3_A, Q3_B]))
+    auto = planner.plan(T_a, T_b)
+    colloc = planner.plan(T_a, T_b, method='collocation')
+    assert (auto.solver.method, colloc.solver.method) == ('pullback', 'collocation')
+    s = np.linspace(0.0, 1.0, 2001)
+    q_p, q_c = auto.evaluate(s, order=0)[0], colloc.evaluate(s, order=0)[0]
+    assert np.abs(q_p - q_c).max() <= 1e-7
+    assert np.abs(robot.fk(q_p)[:, :3, 3] - robot.fk(q_c)[:, :3, 3]).max() <= 1e-8
+    assert colloc.length == pytest.approx(auto.length, rel=1e-8)
+
+
+def test_method_collocation_through_via_points(monkeypatch: pytest.MonkeyPatch) -> None:
+    robot = load_robot('ur5e')
+    planner = GeodesicPlanner(robot, time_limit=SOLVE_TIME_LIMIT)
+    qs = robot.home + np.array([[0, 0, 0, 0, 0, 0], [0.3, 0.1, 0, 0, 0, 0], [0.3, 0.1, 0.2, 0, 0.3, 0]])
+    poses = list(robot.fk(qs))
+    auto = planner.plan_through(poses, qs[0])
+    assert auto.solver.method == 'pullback'
+    _no_pullback(planner, monkeypatch)
+    path = planner.plan_through(poses, qs[0], method='collocation')
+    assert path.solver.method == 'collocation' and all(p.solver.method == 'collocation' for p in path.pieces)
+    check_path(planner, path, qs[0], None, None, poses[-1])
+    s = np.linspace(0.0, 1.0, 1001)
+    assert np.abs(auto.evaluate(s, order=0)[0] - path.evaluate(s, order=0)[0]).max() <= 1e-6
+
+
+@pytest.mark.parametrize('method', ['pullback', 'Collocation', '', None, 3])
+def test_invalid_method_is_a_request_error(planar: GeodesicPlanner, method: Any) -> None:
+    with pytest.raises(RequestError, match="method must be one of 'auto', 'collocation'"):
+        planar.plan(None, None, Q3_A, Q3_B, method=method)
+    with pytest.raises(RequestError, match='method must be one of'):
+        planar.plan_joints(Q3_A, Q3_B, method=method)
+    with pytest.raises(RequestError, match='method must be one of'):
+        planar.plan_through([None, planar.robot.fk(np.array(Q3_B))], Q3_A, method=method)
