@@ -17,26 +17,47 @@ if TYPE_CHECKING:
 
 #: Line styles per method (geodesic solid, polynomial dashed), as in the paper's legends.
 STYLES = {'geodesic': {'ls': '-', 'lw': 1.6}, 'polynomial': {'ls': '--', 'lw': 1.2},
-          'cartesian_ik': {'ls': ':', 'lw': 1.2}}
-DPI = 80
+          'cartesian_ik': {'ls': ':', 'lw': 1.4}}
+#: Legend names per method.
+METHOD_LABELS = {'geodesic': 'geodesic method', 'polynomial': 'polynomial method',
+                 'cartesian_ik': 'Cartesian line + IK (Pilz LIN)'}
+#: Resolution of every PNG written here, dots per inch (>= 150 for print).
+DPI = 150
+#: Label of the path parameter axis (dimensionless: SI unit 1).
+S_LABEL = r'path parameter $s$ (1)'
+#: Label of the time axis.
+T_LABEL = r'time $t$ (s)'
 
 
 def _figure(figsize: tuple[float, float]) -> Figure:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    fig = Figure(figsize=figsize, dpi=DPI)
+    fig = Figure(figsize=figsize, dpi=DPI, layout='constrained')
     FigureCanvasAgg(fig)
     return fig
 
 
 def _save(fig: Figure, out_dir: str, name: str) -> str:
+    """Write ``fig`` as ``out_dir/name`` at :data:`DPI` (legends outside the axes included)."""
     path = os.path.join(out_dir, name)
-    fig.tight_layout()
-    try:
-        fig.savefig(path, dpi=DPI, pil_kwargs={'optimize': True})
-    except TypeError:  # very old matplotlib without pil_kwargs
-        fig.savefig(path, dpi=DPI)
+    fig.savefig(path, dpi=DPI, bbox_inches='tight', pad_inches=0.05)
     return path
+
+
+def _legend_outside(ax: Axes, fontsize: float = 8) -> None:
+    """Legend to the right of the axes, so it never covers a curve."""
+    ax.legend(loc='upper left', bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=fontsize)
+
+
+def _method(name: str) -> str:
+    return METHOD_LABELS.get(name, name.replace('_', ' '))
+
+
+def _joint_unit(joint_types: Sequence[str] | None, per: str = '') -> str:
+    """'(rad/s)' for revolute arms, '(rad/s or m/s)' when some joints are prismatic or unknown."""
+    kinds = set(joint_types) if joint_types is not None else {'revolute', 'prismatic'}
+    units = [u for k, u in (('revolute', 'rad'), ('prismatic', 'm')) if k in kinds] or ['rad']
+    return '(' + ' or '.join(u + per for u in units) + ')'
 
 
 def is_planar(profiles: dict[str, dict[str, np.ndarray]]) -> bool:
@@ -66,135 +87,238 @@ def _style(name: str) -> dict[str, Any]:
     return STYLES.get(name, {'ls': '-.', 'lw': 1.0})
 
 
+def _suptitle(fig: Figure, title: str) -> None:
+    if title:
+        fig.suptitle(title, fontsize=10)
+
+
 def plot_comparison(profiles: dict[str, dict[str, np.ndarray]], out_dir: str, *, title: str = '',
-                    planar: bool | None = None) -> list[str]:
-    """Write the comparison figures as PNG files.
+                    planar: bool | None = None, joint_types: Sequence[str] | None = None) -> list[str]:
+    """Write the per-s comparison figures (paper Fig. 5/6 or 8-10) and the deviation from the chord.
 
     Args:
         profiles: method name -> profile from :func:`geodesic_planner.cli.compare.ee_profile`.
         out_dir: existing directory.
-        title: figure title prefix.
+        title: optional figure title above the panels (panel titles are the paper's captions).
         planar: planar (Fig. 5/6) or spatial (Fig. 8-10) layout; detected from the data when None.
+        joint_types: 'revolute' / 'prismatic' per joint (axis units); None: "rad or m".
     Returns:
-        Paths of the PNG files written.
+        Paths of the PNG files written (:data:`DPI` dots per inch).
     """
     if planar is None:
         planar = is_planar(profiles)
-    files = [
+    return [
         _ee_position(profiles, out_dir, title, planar),
-        _derivative_norms(profiles, out_dir, title, 'position'),
+        _derivative_norms(profiles, out_dir, title, 'position', planar),
         _ee_orientation(profiles, out_dir, title, planar),
-        _derivative_norms(profiles, out_dir, title, 'orientation'),
-        _joints(profiles, out_dir, title),
+        _derivative_norms(profiles, out_dir, title, 'orientation', planar),
+        _joints(profiles, out_dir, title, planar, joint_types),
+        _line_deviation(profiles, out_dir, title),
     ]
-    return files
 
 
 def _ee_position(profiles: dict[str, Any], out_dir: str, title: str, planar: bool) -> str:
-    fig = _figure((5.5, 4.5))
+    fig = _figure((6.5, 4.5))
+    first = next(iter(profiles.values()))['p']
     if planar:
         ax = fig.add_subplot(1, 1, 1)
         for name, prof in profiles.items():
-            ax.plot(prof['p'][:, 0], prof['p'][:, 1], label=f'{name} method', **_style(name))
-        first = next(iter(profiles.values()))['p']
+            ax.plot(prof['p'][:, 0], prof['p'][:, 1], label=_method(name), **_style(name))
         ax.plot(first[[0, -1], 0], first[[0, -1], 1], 'o', color='k', ms=4, label='A, B')
-        ax.set_xlabel('px (m)')
-        ax.set_ylabel('py (m)')
+        ax.set_xlabel(r'$p_x$ (m)')
+        ax.set_ylabel(r'$p_y$ (m)')
         ax.set_aspect('equal', adjustable='datalim')
+        ax.grid(alpha=0.3)
+        ax.set_title('Fig. 5(a): the position', fontsize=9)
     else:
         ax = fig.add_subplot(1, 1, 1, projection='3d')
         for name, prof in profiles.items():
-            ax.plot(prof['p'][:, 0], prof['p'][:, 1], prof['p'][:, 2], label=f'{name} method', **_style(name))
-        first = next(iter(profiles.values()))['p']
+            ax.plot(prof['p'][:, 0], prof['p'][:, 1], prof['p'][:, 2], label=_method(name), **_style(name))
         ax.plot(first[[0, -1], 0], first[[0, -1], 1], first[[0, -1], 2], 'k:', lw=0.8, label='chord A-B')
-        ax.set_xlabel('px (m)')
-        ax.set_ylabel('py (m)')
-        ax.set_zlabel('pz (m)')
-    ax.legend(fontsize=8)
-    ax.set_title(f'{title}\nend-effector position (Fig. {"5(a)" if planar else "8(a)"})', fontsize=9)
+        ax.set_xlabel(r'$p_x$ (m)')
+        ax.set_ylabel(r'$p_y$ (m)')
+        ax.set_zlabel(r'$p_z$ (m)')
+        ax.set_title('Fig. 8: the trajectory in the Cartesian space', fontsize=9)
+    _legend_outside(ax)
+    _suptitle(fig, title)
     return _save(fig, out_dir, 'ee_position.png')
 
 
-def _derivative_norms(profiles: dict[str, Any], out_dir: str, title: str, kind: str) -> str:
-    fig = _figure((6.0, 6.0))
+def _derivative_norms(profiles: dict[str, Any], out_dir: str, title: str, kind: str, planar: bool) -> str:
+    fig = _figure((7.5, 6.5))
     if kind == 'position':
-        keys = [('dp', 'vel. |dp/ds| (m)'), ('ddp', 'acc. |d²p/ds²| (m)'), ('dddp', 'jerk |d³p/ds³| (m)')]
+        keys = [('dp', r"$|p\,'|$ (m)"), ('ddp', r"$|p\,''|$ (m)"), ('dddp', r"$|p\,'''|$ (m)")]
         norm = lambda a: np.linalg.norm(a, axis=-1)  # noqa: E731
-        head = 'end-effector position velocity, acceleration, jerk (Fig. 5(b)/8(b))'
+        head = ('Fig. 5(b): the position velocity, acceleration and jerk' if planar
+                else 'Tool position: velocity, acceleration and jerk w.r.t. s')
         name = 'ee_position_derivatives.png'
     else:
-        keys = [('dR', "vel. |R'|_F"), ('ddR', "acc. |R''|_F"), ('dddR', "jerk |R'''|_F")]
+        keys = [('dR', r"$\|R\,'\|_F$ (1)"), ('ddR', r"$\|R\,''\|_F$ (1)"), ('dddR', r"$\|R\,'''\|_F$ (1)")]
         norm = lambda a: np.linalg.norm(a, axis=(-2, -1))  # noqa: E731
-        head = 'end-effector orientation (n, o, a) velocity, acceleration, jerk (Fig. 5(d))'
+        head = ('Fig. 5(d): the orientation velocity, acceleration and jerk' if planar
+                else 'Tool orientation (n, o, a): velocity, acceleration and jerk w.r.t. s')
         name = 'ee_orientation_derivatives.png'
+    axes = fig.subplots(3, 1, sharex=True)
     for i, (key, label) in enumerate(keys):
-        ax = fig.add_subplot(3, 1, i + 1)
+        ax = axes[i]
         series = []
         for meth, prof in profiles.items():
             series.append(norm(prof[key]))
-            ax.plot(prof['s'], series[-1], label=f'{meth} method', **_style(meth))
+            ax.plot(prof['s'], series[-1], label=_method(meth), **_style(meth))
         _tidy(ax, series)
-        ax.set_ylabel(label, fontsize=8)
+        ax.set_ylabel(label, fontsize=9)
         ax.grid(alpha=0.3)
-        if i == 0:
-            ax.set_title(f'{title}\n{head}', fontsize=9)
-            ax.legend(fontsize=8)
-    ax.set_xlabel('s')
+    axes[0].set_title(head, fontsize=9)
+    _legend_outside(axes[0])
+    axes[-1].set_xlabel(S_LABEL)
+    _suptitle(fig, title)
     return _save(fig, out_dir, name)
 
 
 def _ee_orientation(profiles: dict[str, Any], out_dir: str, title: str, planar: bool) -> str:
     if planar:
-        fig = _figure((5.5, 4.5))
+        fig = _figure((6.5, 4.5))
         ax = fig.add_subplot(1, 1, 1)
         for meth, prof in profiles.items():
             R = prof['R']
-            ax.plot(R[:, 0, 0], R[:, 1, 0], label=f'n, {meth}', **_style(meth))
-            ax.plot(R[:, 0, 1], R[:, 1, 1], label=f'o, {meth}', **_style(meth))
-        ax.set_xlabel('nx, ox')
-        ax.set_ylabel('ny, oy')
-        ax.legend(fontsize=8)
-        ax.set_title(f'{title}\nend-effector orientation (Fig. 5(c))', fontsize=9)
+            ax.plot(R[:, 0, 0], R[:, 1, 0], label=f'n, {_method(meth)}', **_style(meth))
+            ax.plot(R[:, 0, 1], R[:, 1, 1], label=f'o, {_method(meth)}', **_style(meth))
+        ax.set_xlabel(r'$n_x$, $o_x$ (1)')
+        ax.set_ylabel(r'$n_y$, $o_y$ (1)')
+        _legend_outside(ax)
+        ax.set_title('Fig. 5(c): the orientation', fontsize=9)
         ax.grid(alpha=0.3)
+        _suptitle(fig, title)
         return _save(fig, out_dir, 'ee_orientation.png')
-    fig = _figure((11.0, 4.0))
+    fig = _figure((12.0, 4.2))
+    ax3 = None
     for i, axis_name in enumerate('noa'):
-        ax = fig.add_subplot(1, 3, i + 1, projection='3d')
+        ax3 = fig.add_subplot(1, 3, i + 1, projection='3d')
         for meth, prof in profiles.items():
             v = prof['R'][:, :, i]
-            ax.plot(v[:, 0], v[:, 1], v[:, 2], label=meth, **_style(meth))
-        ax.set_xlabel(f'{axis_name}x', fontsize=8)
-        ax.set_ylabel(f'{axis_name}y', fontsize=8)
-        ax.set_zlabel(f'{axis_name}z', fontsize=8)
-        ax.tick_params(labelsize=6)
-        ax.set_title(f'{axis_name} (Fig. 10)', fontsize=9)
-        if i == 0:
-            ax.legend(fontsize=7)
-    fig.suptitle(f'{title}: end-effector orientation', fontsize=9)
+            ax3.plot(v[:, 0], v[:, 1], v[:, 2], label=_method(meth), **_style(meth))
+        ax3.set_xlabel(f'${axis_name}_x$ (1)', fontsize=8)
+        ax3.set_ylabel(f'${axis_name}_y$ (1)', fontsize=8)
+        ax3.set_zlabel(f'${axis_name}_z$ (1)', fontsize=8)
+        ax3.tick_params(labelsize=6)
+        ax3.set_title(f'Fig. 10: the planned orientation, ${axis_name}$', fontsize=9)
+    assert ax3 is not None
+    _legend_outside(ax3, fontsize=7)
+    _suptitle(fig, title)
     return _save(fig, out_dir, 'ee_orientation.png')
 
 
-def _joints(profiles: dict[str, Any], out_dir: str, title: str) -> str:
-    fig = _figure((12.0, 3.6))
-    labels = [('q', 'joint positions'), ('dq', 'joint velocities'), ('ddq', 'joint accelerations'),
-              ('dddq', 'joint jerks')]
-    colors = ['C0', 'C1', 'C2', 'C3', 'C4', 'C5', 'C6', 'C7']
-    for i, (key, label) in enumerate(labels):
-        ax = fig.add_subplot(1, 4, i + 1)
+def _joint_legend(ax: Axes, dof: int, methods: Sequence[str], names: Sequence[str] | None = None) -> None:
+    """One legend entry per joint (colour) and per method (line style), outside the axes."""
+    from matplotlib.lines import Line2D
+    handles = [Line2D([], [], color=f'C{j % 10}', lw=1.5) for j in range(dof)]
+    labels = [names[j] if names is not None else f'joint {j + 1}' for j in range(dof)]
+    for meth in methods:
+        handles.append(Line2D([], [], color='k', **_style(meth)))
+        labels.append(_method(meth))
+    ax.legend(handles, [lab.replace('_', ' ') for lab in labels], loc='upper left',
+              bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=7)
+
+
+def _joints(profiles: dict[str, Any], out_dir: str, title: str, planar: bool,
+            joint_types: Sequence[str] | None) -> str:
+    fig = _figure((13.0, 3.8))
+    u = _joint_unit(joint_types)
+    rows = [('q', f'$q$ {u}'), ('dq', f"$q\\,'$ {u}"), ('ddq', f"$q\\,''$ {u}"), ('dddq', f"$q\\,'''$ {u}")]
+    names = ('joint positions', 'joint velocities w.r.t. s', 'joint accelerations w.r.t. s',
+             'joint jerks w.r.t. s')
+    axes = fig.subplots(1, 4)
+    for i, (key, label) in enumerate(rows):
+        ax = axes[i]
         _tidy(ax, [prof[key] for prof in profiles.values()])
         for meth, prof in profiles.items():
             arr = prof[key]
             for j in range(arr.shape[1]):
-                ax.plot(prof['s'], arr[:, j], color=colors[j % len(colors)],
-                        label=f'joint {j + 1}, {meth}', **_style(meth))
-        ax.set_xlabel('s')
-        ax.set_title(label, fontsize=9)
+                ax.plot(prof['s'], arr[:, j], color=f'C{j % 10}', **_style(meth))
+        ax.set_xlabel(S_LABEL, fontsize=8)
+        ax.set_ylabel(label, fontsize=8)
+        ax.set_title(names[i], fontsize=9)
         ax.grid(alpha=0.3)
         ax.tick_params(labelsize=7)
-        if i == 0:
-            ax.legend(fontsize=6)
-    fig.suptitle(f'{title}: joint space (Fig. 6/9)', fontsize=9)
+    dof = next(iter(profiles.values()))['q'].shape[1]
+    _joint_legend(axes[-1], dof, list(profiles))
+    fig.suptitle((title + ': ' if title else '')
+                 + f'Fig. {"6" if planar else "9"}: the trajectory planning in the joint space', fontsize=10)
     return _save(fig, out_dir, 'joints.png')
+
+
+def _line_deviation(profiles: dict[str, Any], out_dir: str, title: str) -> str:
+    """Distance of the tool to the chord A-B vs s, mm (what a 3-D plot cannot show)."""
+    from ..core.transforms import segment_distance
+    fig = _figure((7.0, 3.6))
+    ax = fig.add_subplot(1, 1, 1)
+    first = next(iter(profiles.values()))['p']
+    a, b = first[0], first[-1]
+    series = []
+    for meth, prof in profiles.items():
+        series.append(1e3 * segment_distance(prof['p'], a, b))
+        ax.plot(prof['s'], series[-1], label=_method(meth), **_style(meth))
+    ax.set_xlabel(S_LABEL)
+    ax.set_ylabel('distance to chord A-B (mm)')
+    ax.set_title('Deviation of the tool path from the straight line A-B', fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.set_ylim(bottom=0.0, top=max(1.08 * max(float(v.max()) for v in series), 1e-6))
+    _legend_outside(ax)
+    _suptitle(fig, title)
+    return _save(fig, out_dir, 'ee_line_deviation.png')
+
+
+def plot_timed_comparison(timed: dict[str, dict[str, np.ndarray]], out_dir: str, *,
+                          joint_names: Sequence[str] | None = None,
+                          joint_types: Sequence[str] | None = None, title: str = '') -> list[str]:
+    """Figures vs time of timed trajectories: joints (velocity, acceleration, jerk) and tool.
+
+    Args:
+        timed: method name -> profile from :func:`geodesic_planner.cli.compare.timed_profile`
+            (``t`` s; ``dq``, ``ddq``, ``dddq`` per s^k; ``dp``, ``dddp`` m/s, m/s^3).
+        out_dir: existing directory.
+        joint_names: legend names of the joints; default "joint 1", ...
+        joint_types: 'revolute' / 'prismatic' per joint (axis units); None: "rad or m".
+        title: optional figure title.
+    Returns:
+        Paths of ``timed_joints.png`` and ``timed_tool.png``.
+    """
+    methods = list(timed)
+    fig = _figure((4.2 * len(methods) + 1.5, 7.5))
+    axes = fig.subplots(3, len(methods), sharex='col', sharey='row', squeeze=False)
+    rows = [('dq', r'$\dot q$ ' + _joint_unit(joint_types, '/s')),
+            ('ddq', r'$\ddot q$ ' + _joint_unit(joint_types, '/s$^2$')),
+            ('dddq', r'$\dddot q$ ' + _joint_unit(joint_types, '/s$^3$'))]
+    for col, meth in enumerate(methods):
+        prof = timed[meth]
+        for row, (key, label) in enumerate(rows):
+            ax = axes[row, col]
+            for j in range(prof[key].shape[1]):
+                ax.plot(prof['t'], prof[key][:, j], color=f'C{j % 10}', lw=1.2)
+            ax.grid(alpha=0.3)
+            ax.tick_params(labelsize=7)
+            ax.set_ylabel(label, fontsize=8)
+        axes[0, col].set_title(f'{_method(meth)}: {prof["t"][-1]:.3f} s', fontsize=9)
+        axes[-1, col].set_xlabel(T_LABEL, fontsize=8)
+    dof = next(iter(timed.values()))['dq'].shape[1]
+    _joint_legend(axes[0, -1], dof, [], joint_names)
+    _suptitle(fig, title or 'Joint velocity, acceleration and jerk in time, same joint limits')
+    files = [_save(fig, out_dir, 'timed_joints.png')]
+
+    fig = _figure((8.0, 5.5))
+    axes2 = fig.subplots(2, 1, sharex=True)
+    for meth, prof in timed.items():
+        axes2[0].plot(prof['t'], np.linalg.norm(prof['dp'], axis=-1), label=_method(meth), **_style(meth))
+        axes2[1].plot(prof['t'], np.linalg.norm(prof['dddp'], axis=-1), label=_method(meth), **_style(meth))
+    axes2[0].set_ylabel(r'tool speed $|\dot p|$ (m/s)', fontsize=9)
+    axes2[1].set_ylabel(r'tool jerk $|\dddot p|$ (m/s$^3$)', fontsize=9)
+    axes2[1].set_xlabel(T_LABEL)
+    for ax in axes2:
+        ax.grid(alpha=0.3)
+    _legend_outside(axes2[0])
+    _suptitle(fig, title or 'Tool speed and jerk in time, same joint limits')
+    files.append(_save(fig, out_dir, 'timed_tool.png'))
+    return files
 
 
 class JointSeries(Protocol):
@@ -229,9 +353,9 @@ def plot_trajectories(path: str | os.PathLike[str], columns: Sequence[tuple[str,
         ``path`` as a string.
     """
     ncols = max(len(columns), 1)
-    fig = _figure((6.0 * ncols, 8.0))
+    fig = _figure((6.0 * ncols + 1.5, 8.0))
     axes = fig.subplots(3, ncols, sharey='row', squeeze=False)
-    labels = ('position [rad or m]', 'velocity [/s]', 'acceleration [/s²]')
+    labels = ('position (rad or m)', 'velocity (rad/s or m/s)', r'acceleration (rad/s$^2$ or m/s$^2$)')
     colors = [f'C{k}' for k in range(10)]
     legend_done = False
     for col, (heading, rec) in enumerate(columns):
@@ -247,18 +371,19 @@ def plot_trajectories(path: str | os.PathLike[str], columns: Sequence[tuple[str,
             for j, name in enumerate(rec.joint_names):
                 ax.plot(rec.t, values[:, j], color=colors[j % len(colors)], label=name, **style)
         if not legend_done:
-            axes[0, col].legend(fontsize=7, loc='best')
+            handles, names = axes[0, col].get_legend_handles_labels()
+            axes[0, -1].legend(handles, names, fontsize=7, loc='upper left', bbox_to_anchor=(1.02, 1.0),
+                               borderaxespad=0.0)
             legend_done = True
     for row, label in enumerate(labels):
         axes[row, 0].set_ylabel(label)
         for col in range(ncols):
             axes[row, col].grid(True, alpha=0.3)
     for col in range(ncols):
-        axes[-1, col].set_xlabel('time from start [s]')
+        axes[-1, col].set_xlabel('time from start (s)')
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(os.fspath(path), dpi=90)
+    fig.savefig(os.fspath(path), dpi=DPI, bbox_inches='tight', pad_inches=0.05)
     return os.fspath(path)
 
 
-__all__ = ['JointSeries', 'is_planar', 'plot_comparison', 'plot_trajectories']
+__all__ = ['DPI', 'JointSeries', 'is_planar', 'plot_comparison', 'plot_timed_comparison', 'plot_trajectories']
