@@ -5,6 +5,7 @@ Layers inside: sampling -> topp -> smoothing (the rest-to-rest law) behind the l
 """
 from __future__ import annotations
 
+from .jerk import JerkLimited
 from .law import JointLimits, PathLike, TimeLaw, TimeScaling
 from .parameterize import time_parameterize
 from .smoothing import SmoothRestToRest
@@ -12,6 +13,7 @@ from .trajectory import Trajectory
 from .validate import check_trajectory, trajectory_problems
 
 __all__ = [
+    'JerkLimited',
     'JointLimits',
     'PathLike',
     'SmoothRestToRest',
