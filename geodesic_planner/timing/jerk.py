@@ -19,7 +19,10 @@ q(s) never changes, only s(t).
    uniform time stretch ``lambda`` divides velocities, accelerations and jerks by ``lambda``,
    ``lambda^2``, ``lambda^3`` exactly, so the smallest admissible ``lambda`` follows from the
    largest ratios. ``c`` is chosen by a coarse scan and golden-section search for the shortest
-   duration ``lambda(c) * sum(T* + c w_ref)``.
+   duration ``lambda(c) * sum(T* + c w_ref)``. When the jerk binds (the result is more than
+   LOOSE times the v/a-optimal duration), the optimal pass is repeated with the acceleration
+   limits scaled by ACCEL_SCALES, keeping the shortest law: gentler accelerations allow gentler
+   ramps (on a line where amax is not reached the 7-segment optimum peaks at sqrt(vmax jmax)).
 4. ``duration=`` stretches the law uniformly (never shorter than the minimum).
 """
 from __future__ import annotations
