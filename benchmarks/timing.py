@@ -1,13 +1,17 @@
 #!/usr/bin/env python3
 """Benchmark of the timing layer: ``path.timed()`` on the planner cases of ``run.py``.
 
-Run:  .venv/bin/python benchmarks/timing.py [--repeats 40] [--tool]
+Run:  .venv/bin/python benchmarks/timing.py [--repeats 40] [--tool] [--jerk]
 
 Per case it prints the time of ``path.timed()`` with the robot's joint limits (median and p90 wall
 clock, median thread CPU time, ms) and the trajectory's duration. ``--tool`` adds rows timed with
 a tool speed limit (half the tool's peak linear speed of the unlimited law) and an angular one
 (half its peak angular speed); an older checkout without those arguments runs without
-``--tool``. The paths are planned once; only the timing is measured. Nothing is asserted.
+``--tool``. ``--jerk`` adds a table of jerk-limited timings (``max_jerk`` at 100 %, 30 % and
+10 % of the smooth law's peak jerk per joint): duration against the v/a time-optimal duration
+(``optimality_ratio``) and against the per-joint 7-segment lower bound (:mod:`.jerk_bound`), the
+peak jerk / limit on a dense grid, and the time of ``path.timed(max_jerk=...)``. The paths are
+planned once; only the timing is measured. Nothing is asserted.
 """
 from __future__ import annotations
 
@@ -51,10 +55,38 @@ def peak_tool_speeds(path, traj, samples: int = 4001) -> tuple[float, float]:
             float(np.linalg.norm(twist[:, 3:], axis=1).max()))
 
 
+JERK_FACTORS = (1.0, 0.3, 0.1)
+
+
+def jerk_table(repeats: int) -> None:
+    """Jerk-limited timing on every case: durations against the v/a optimum and the 7-segment bound."""
+    from geodesic_planner.timing.jerk_bound import rest_to_rest_lower_bound
+
+    print('\n| case | max_jerk | duration (s) | / v/a optimum | / 7-segment bound | peak jerk / limit '
+          '| median ms |')
+    print('|---|---|---:|---:|---:|---:|---:|')
+    for name, path in cases():
+        free = path.timed()
+        t = np.linspace(0.0, free.duration, 20001)
+        peak = np.abs(free.jerk_at_time(t)).max(axis=0)
+        for f in JERK_FACTORS:
+            jmax = f * peak
+            traj = path.timed(max_jerk=jmax)
+            tt = np.linspace(0.0, traj.duration, 20001)
+            ratio = float((np.abs(traj.jerk_at_time(tt)) / jmax).max())
+            q_r = path.evaluate(np.asarray(traj.rests, dtype=float), 0)[0]
+            bound = rest_to_rest_lower_bound(q_r, traj.max_velocity, traj.max_acceleration, jmax)
+            ms = measure(lambda p=path, j=jmax: p.timed(max_jerk=j), repeats)
+            print(f'| {name} | {f:.0%} of smooth peak | {traj.duration:.3f} | {traj.optimality_ratio:.3f} | '
+                  f'{traj.duration / bound:.3f} | {ratio:.4f} | {ms.median_ms:.1f} |')
+        print(f'| {name} | none (smooth law) | {free.duration:.3f} | {free.optimality_ratio:.3f} | | | |')
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--repeats', type=int, default=40)
     ap.add_argument('--tool', action='store_true', help='also time with tool speed limits')
+    ap.add_argument('--jerk', action='store_true', help='also a table of jerk-limited timings')
     args = ap.parse_args(argv)
     print(f'Machine: {machine()}')
     print(f'Repeats per timing: {args.repeats}; times in ms.\n')
@@ -75,6 +107,8 @@ def main(argv: list[str] | None = None) -> int:
                 t = measure(lambda p=path, k=kw: p.timed(**k), args.repeats)
                 print(f'| {name} | {label} | {t.median_ms:.2f} | {t.p90_ms:.2f} | {t.cpu_median_ms:.2f} | '
                       f'{tt.duration:.3f} |')
+    if args.jerk:
+        jerk_table(max(1, args.repeats // 4))
     return 0
 
 

@@ -91,7 +91,8 @@ class JointPath(ABC):
 
     def timed(self, max_velocity: npt.ArrayLike | None = None, max_acceleration: npt.ArrayLike | None = None,
               duration: float | None = None, *, max_tool_speed: float | None = None,
-              max_tool_angular_speed: float | None = None, law: TimeLaw | None = None) -> Trajectory:
+              max_tool_angular_speed: float | None = None, law: TimeLaw | None = None,
+              max_jerk: npt.ArrayLike | None = None) -> Trajectory:
         """Time parameterization under per-joint limits (see timing.parameterize).
 
         The one call from core up into the timing layer: a function-local import, so that core
@@ -106,12 +107,15 @@ class JointPath(ABC):
                 None: no limit.
             max_tool_angular_speed: limit on the norm of the tool's angular velocity, rad/s;
                 None: no limit.
-            law: the time law (``timing.TimeLaw``); None: the smooth rest-to-rest law.
-                ``timing.ConstantSpeed(ramp=...)`` keeps the metric speed constant (Lemma 2).
+            law: the time law (``timing.TimeLaw``); None: the smooth rest-to-rest law, or the
+                jerk-limited one when ``max_jerk`` is given. ``timing.ConstantSpeed(ramp=...)``
+                keeps the metric speed constant (Lemma 2).
+            max_jerk: per-joint jerk limit (scalars broadcast), rad/s³ (m/s³); None: no jerk
+                limit. With it the jerk-limited law (timing.jerk) is used.
         Raises:
             LimitError: an invalid limit (the message names it) or a duration below the minimum.
         """
         from ..timing.parameterize import time_parameterize
         return time_parameterize(self, max_velocity=max_velocity, max_acceleration=max_acceleration,
                                  duration=duration, law=law, max_tool_speed=max_tool_speed,
-                                 max_tool_angular_speed=max_tool_angular_speed)
+                                 max_tool_angular_speed=max_tool_angular_speed, max_jerk=max_jerk)

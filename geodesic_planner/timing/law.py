@@ -71,6 +71,8 @@ class JointLimits(NamedTuple):
             finite), or None (no limit); set only when the path's robot has kinematics.
         max_tool_angular_speed: norm of the tool's angular velocity, rad/s (positive and
             finite), or None (no limit).
+        max_jerk: shape (dof,), rad/s^3 (m/s^3), positive and finite, or None (no jerk limit;
+            only laws with ``honours_jerk = True`` accept one, see :class:`TimeLaw`).
     """
 
     joint_names: list[str]
@@ -78,6 +80,7 @@ class JointLimits(NamedTuple):
     max_acceleration: np.ndarray
     max_tool_speed: float | None = None
     max_tool_angular_speed: float | None = None
+    max_jerk: np.ndarray | None = None
 
 
 class TimeLaw(Protocol):
@@ -85,7 +88,8 @@ class TimeLaw(Protocol):
 
     Within all of them: the joint rows and, when set, the tool speed rows
     (:func:`~.tool.tool_rows`, or :func:`~.tool.tool_twist` for a law that does not sample the
-    path at nodes).
+    path at nodes). A law that also honours ``limits.max_jerk`` says so with a class attribute
+    ``honours_jerk = True`` (:mod:`.jerk`); the others are never given a jerk limit.
     """
 
     def __call__(self, path: PathLike, limits: JointLimits, duration: float | None) -> Trajectory:
@@ -129,7 +133,8 @@ def _limit(value: npt.ArrayLike | None, default: npt.ArrayLike | None, dof: int,
 def joint_limits(path: PathLike, max_velocity: npt.ArrayLike | None = None,
                  max_acceleration: npt.ArrayLike | None = None, *,
                  max_tool_speed: float | None = None,
-                 max_tool_angular_speed: float | None = None) -> JointLimits:
+                 max_tool_angular_speed: float | None = None,
+                 max_jerk: npt.ArrayLike | None = None) -> JointLimits:
     """The path's joint names and validated limits (the robot's where None).
 
     Args:
@@ -140,6 +145,7 @@ def joint_limits(path: PathLike, max_velocity: npt.ArrayLike | None = None,
             None: no limit.
         max_tool_angular_speed: limit on the norm of the tool's angular velocity, rad/s; None: no
             limit.
+        max_jerk: scalar or (dof,), rad/s^3 (m/s^3); None: no jerk limit (never the robot's).
     Raises:
         LimitError: a limit is missing, not a number, of the wrong size, or not positive and
             finite (the message names the joint, or the tool limit's argument); a tool limit on a
@@ -159,7 +165,8 @@ def joint_limits(path: PathLike, max_velocity: npt.ArrayLike | None = None,
     tool_angular = check_tool_limit(max_tool_angular_speed, 'max_tool_angular_speed')
     if tool_speed is not None or tool_angular is not None:
         tool_kinematics(path, 'max_tool_speed' if tool_speed is not None else 'max_tool_angular_speed')
-    return JointLimits(joint_names, vmax, amax, tool_speed, tool_angular)
+    jmax = None if max_jerk is None else _limit(max_jerk, None, dof, joint_names, 'max_jerk')
+    return JointLimits(joint_names, vmax, amax, tool_speed, tool_angular, jmax)
 
 
 def check_duration(duration: float | None) -> float | None:

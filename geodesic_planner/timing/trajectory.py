@@ -35,6 +35,8 @@ class Trajectory:
             None: none.
         max_tool_angular_speed: limit used on the norm of the tool's angular velocity, rad/s;
             None: none.
+        max_jerk: jerk limit used, shape (dof,), rad/s^3 (m/s^3); None: none (the law bounds
+            the jerk but does not limit it).
     """
 
     path: PathLike
@@ -50,6 +52,7 @@ class Trajectory:
     time_scale: float = field(repr=False, default=1.0)
     max_tool_speed: float | None = None
     max_tool_angular_speed: float | None = None
+    max_jerk: np.ndarray | None = None
 
     @property
     def optimality_ratio(self) -> float:

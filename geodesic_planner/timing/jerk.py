@@ -1,0 +1,426 @@
+"""The jerk-limited rest-to-rest law: time-optimal profile, box-filtered, checked against v, a, j.
+
+The joint jerk along a path is ``d3q/dt3 = q' sdddot + 3 q'' sdot sddot + q''' sdot^3``; the path
+q(s) never changes, only s(t).
+
+1. The time-optimal v/a profile ``s*(t)`` is computed as for :mod:`.smoothing` (:mod:`.topp`,
+   limits * (1 - TOPP_MARGIN), tool speed rows included); its duration is
+   :attr:`Trajectory.topp_duration`. Its acceleration ``u*`` is piecewise constant (bang-bang).
+2. **Box filter**: each rest-to-rest piece is replaced by its moving average over a window ``w``,
+   ``s(t) = (1 / w) int_{t - w}^{t} s*(r) dr``, exactly (``s*`` is piecewise quadratic). Then
+   ``sdot = (s*(t) - s*(t - w)) / w``, ``sddot = (sdot*(t) - sdot*(t - w)) / w`` is continuous
+   and ``sdddot = (u*(t) - u*(t - w)) / w`` is bounded: the acceleration ramps linearly over
+   ``w``, and every rest has zero velocity and acceleration. Each piece lasts ``T* + w``. On a
+   straight joint line that cruises with a full acceleration phase, the box filter of the
+   bang-bang profile with ``w = amax / jmax`` is exactly the time-optimal 7-segment profile.
+3. **Width and stretch**: the reference width of a piece is ``max_j A_j / jmax_j`` (A_j the
+   joint's peak acceleration in ``s*``). For a width factor ``c`` the law is checked on a dense
+   grid (uniform in t, about uniform in s, and around every time where ``sdddot`` jumps); a
+   uniform time stretch ``lambda`` divides velocities, accelerations and jerks by ``lambda``,
+   ``lambda^2``, ``lambda^3`` exactly, so the smallest admissible ``lambda`` follows from the
+   largest ratios. ``c`` is chosen by a coarse scan and golden-section search for the shortest
+   duration ``lambda(c) * sum(T* + c w_ref)``. When the jerk binds (the result is more than
+   LOOSE times the v/a-optimal duration), the optimal pass is repeated with the acceleration
+   limits scaled by ACCEL_SCALES, keeping the shortest law: gentler accelerations allow gentler
+   ramps (on a line where amax is not reached the 7-segment optimum peaks at sqrt(vmax jmax)).
+4. ``duration=`` stretches the law uniformly (never shorter than the minimum).
+"""
+from __future__ import annotations
+
+import functools
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.errors import LimitError
+from ._arrays import clip
+from .law import JointLimits, PathLike
+from .sampling import PathSamples, refine_adaptively, sample_path
+from .smoothing import CHECK_MARGIN, TOPP_MARGIN
+from .tool import ToolRows, tool_rows
+from .topp import topp
+from .trajectory import Trajectory
+
+#: Samples of the dense check (those nearest a limit) re-verified with exact path derivatives.
+EXACT_CHECKS = 32
+#: Extra check samples spread uniformly in s (mapped to t).
+S_UNIFORM_CHECKS = 1000
+#: Width factors of the coarse scan (times the reference width), then golden-section steps.
+WIDTH_SCAN = (0.5, 0.71, 1.0, 1.41, 2.0, 2.83, 4.0)
+GOLDEN_STEPS = 5
+#: Scales of the acceleration limits of the time-optimal pass tried, in order, when the jerk
+#: binds (the duration exceeds LOOSE times the v/a-optimal one); the search stops at the first
+#: scale that does not shorten the law (lower accelerations allow longer, gentler ramps).
+ACCEL_SCALES = (0.7, 0.5, 0.35, 0.25)
+LOOSE = 1.1
+
+
+@dataclass(frozen=True, eq=False)
+class StarPiece:
+    """The time-optimal law of one rest-to-rest piece, ``s*(r) - s_start`` in local time r, s.
+
+    Per step k (starting at ``t0[k]``): ``s* = s0 + v0 d + u d^2 / 2`` with ``d = r - t0[k]``;
+    ``S1`` is the integral of ``s* - s_start`` from 0 to ``t0[k]``. Before 0: 0; after
+    ``t_star``: ``span``, at rest.
+    """
+
+    t0: np.ndarray
+    s0: np.ndarray
+    v0: np.ndarray
+    u: np.ndarray
+    S1: np.ndarray
+    t_star: float
+    span: float
+    S1_end: float
+
+    def at(self, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Integral S1, s* - s_start, sdot*, sddot* at local times ``r`` (M,) (any real)."""
+        k = clip(np.searchsorted(self.t0, r, side='right') - 1, 0, self.t0.size - 1)
+        d = r - self.t0[k]
+        s0, v0, u = self.s0[k], self.v0[k], self.u[k]
+        S1 = self.S1[k] + d * (s0 + d * (0.5 * v0 + d * u / 6.0))
+        s = s0 + d * (v0 + 0.5 * u * d)
+        v = v0 + u * d
+        before, after = r <= 0.0, r >= self.t_star
+        zero = before | after
+        S1 = np.where(before, 0.0, np.where(after, self.S1_end + self.span * (r - self.t_star), S1))
+        s = np.where(before, 0.0, np.where(after, self.span, s))
+        return S1, s, np.where(zero, 0.0, v), np.where(zero, 0.0, u)
+
+
+def star_pieces(s_nodes: np.ndarray, x: np.ndarray) -> list[tuple[float, StarPiece]]:
+    """Split the optimal profile x = sdot*^2 (n+1,) at its rests: (s_start, piece) per piece."""
+    rests = np.flatnonzero(x <= 0.0)
+    out = []
+    for a, b in itertools.pairwise(rests):
+        rel = s_nodes[a:b + 1] - s_nodes[a]
+        dl = np.diff(rel)
+        v = np.sqrt(x[a:b + 1])
+        dt = 2.0 * dl / (v[:-1] + v[1:])
+        u = (x[a + 1:b + 1] - x[a:b]) / (2.0 * dl)
+        t0 = np.concatenate([[0.0], np.cumsum(dt)])
+        s0, v0 = rel[:-1], v[:-1]
+        S1 = np.concatenate([[0.0], np.cumsum(s0 * dt + v0 * dt**2 / 2.0 + u * dt**3 / 6.0)])
+        out.append((float(s_nodes[a]), StarPiece(t0[:-1], s0, v0, u, S1[:-1], float(t0[-1]),
+                                                  float(rel[-1]), float(S1[-1]))))
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class BoxLaw:
+    """The box-filtered law (a :class:`~.law.TimeScaling`): pieces one after the other.
+
+    Piece i starts at ``t_offsets[i]`` at rest at ``s_start[i]`` and lasts
+    ``stars[i].t_star + width[i]``.
+    """
+
+    stars: tuple[StarPiece, ...]
+    s_start: np.ndarray
+    width: np.ndarray
+    t_offsets: np.ndarray
+
+    @property
+    def n_pieces(self) -> int:
+        return len(self.stars)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t_offsets[-1])
+
+    @property
+    def t_star(self) -> float:
+        return float(sum(p.t_star for p in self.stars))
+
+    @property
+    def rests(self) -> tuple[float, ...]:
+        return (float(self.s_start[0]),) + tuple(float(s0 + p.span) for s0, p in zip(
+            self.s_start, self.stars, strict=True))
+
+    def evaluate(self, t: np.ndarray, jerk: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """s, sdot, sddot and (if ``jerk``) sdddot at times ``t`` (M,), clipped to [0, duration]."""
+        t = clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        offs = self.t_offsets
+        out = np.zeros((4, t.size))
+        idx = clip(np.searchsorted(offs, t, side='right') - 1, 0, self.n_pieces - 1)
+        for i, star in enumerate(self.stars):
+            m = idx == i
+            w = float(self.width[i])
+            dur = star.t_star + w
+            r = clip(t[m] - offs[i], 0.0, dur)
+            r = np.where(np.abs(r - dur) <= 1e-12 * max(1.0, self.duration), dur, r)
+            A, B = star.at(r), star.at(r - w)
+            s = clip((A[0] - B[0]) / w, 0.0, star.span)
+            rows = (s, np.maximum((A[1] - B[1]) / w, 0.0), (A[2] - B[2]) / w, (A[3] - B[3]) / w)
+            rest = (r <= 0.0) | (r >= dur)
+            for j, row in enumerate(rows):
+                out[j, m] = np.where(rest, 0.0, row)
+            out[0, m] = self.s_start[i] + np.where(r >= dur, star.span, out[0, m])
+        return out[0], out[1], out[2], (out[3] if jerk else None)
+
+    def times_at(self, s: np.ndarray) -> np.ndarray:
+        """Approximate times (M,) at which the law passes ``s`` (M,): s*'s nodes delayed by w / 2."""
+        ts, ss = [], []
+        for i, star in enumerate(self.stars):
+            ts.append(self.t_offsets[i] + 0.5 * self.width[i] + np.append(star.t0, star.t_star))
+            ss.append(self.s_start[i] + np.append(star.s0, star.span))
+        return np.interp(s, np.concatenate(ss), np.concatenate(ts))
+
+    def jerk_events(self) -> np.ndarray:
+        """Sorted times where sdddot may jump: s*'s step starts, and the same delayed by w."""
+        ev = [self.t_offsets[i] + np.append(star.t0, star.t_star) + shift
+              for i, star in enumerate(self.stars) for shift in (0.0, float(self.width[i]))]
+        return np.unique(np.concatenate(ev + [self.t_offsets]))
+
+
+def build_box_law(pieces: list[tuple[float, StarPiece]], width: np.ndarray) -> BoxLaw:
+    """The box-filtered law of ``pieces`` with window ``width`` (L,) per piece, s."""
+    durations = np.array([p.t_star for _, p in pieces]) + width
+    return BoxLaw(tuple(p for _, p in pieces), np.array([s for s, _ in pieces]), width,
+                  np.concatenate([[0.0], np.cumsum(durations)]))
+
+
+def third_derivative_coefficients(ps: PathSamples) -> np.ndarray:
+    """Per step, ``q''' = d0 + r (d1 + r d2)`` in ``r = s - s_k``: (3, dof, n).
+
+    The derivative of the cubic Hermite of q'' (values q'', slopes q''' at both ends of a step).
+    """
+    h = np.diff(ps.s)
+    v0, m0, v1, m1 = ps.bR[:-1].T, ps.cR[:-1].T, ps.bL[1:].T, ps.cL[1:].T
+    slope = (v1 - v0) / h
+    return np.stack([m0, 2.0 * (3.0 * slope - 2.0 * m0 - m1) / h, 3.0 * (m0 + m1 - 2.0 * slope) / (h * h)])
+
+
+def _third_derivative_t(ps: PathSamples, coef: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """q''' at sorted ``s`` (M,) from :func:`third_derivative_coefficients`; (dof, M)."""
+    n = ps.s.size - 1
+    k = clip(np.searchsorted(ps.s, s, side='right') - 1, 0, n - 1)
+    counts = np.bincount(k, minlength=n)
+    r = s - ps.s[k]
+    out = np.repeat(coef[2], counts, axis=1)
+    out *= r
+    out += np.repeat(coef[1], counts, axis=1)
+    out *= r
+    out += np.repeat(coef[0], counts, axis=1)
+    return out
+
+
+def _crossing_times(law: BoxLaw, t: np.ndarray, s: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Times at which the (monotone) law passes ``targets``: bracketed on samples, then Newton."""
+    j = clip(np.searchsorted(s, targets), 1, s.size - 1)
+    lo, hi = t[j - 1], t[j]
+    tc = 0.5 * (lo + hi)
+    for _ in range(6):
+        sc, sdc, _, _ = law.evaluate(tc, jerk=False)
+        step = np.where(sdc > 0, (sc - targets) / np.where(sdc > 0, sdc, 1.0), 0.0)
+        tc = clip(tc - step, lo, hi)
+    return tc
+
+
+@dataclass(frozen=True, eq=False)
+class _Checker:
+    """The dense check of a box law against the limits (ratios at time scale 1)."""
+
+    path: PathLike
+    ps: PathSamples
+    limits: JointLimits
+    tool: ToolRows | None
+    check_samples: int | None
+
+    @functools.cached_property
+    def coef3(self) -> np.ndarray:
+        """Coefficients of q''' per step of ``ps`` (:func:`third_derivative_coefficients`)."""
+        return third_derivative_coefficients(self.ps)
+
+    def stretch(self, law: BoxLaw) -> float:
+        """Smallest uniform time stretch (>= 1) keeping ``law`` within 1 - CHECK_MARGIN of every limit."""
+        rv, ra, rj = self.ratios(law)
+        target = 1.0 - CHECK_MARGIN
+        return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target))
+
+    def ratios(self, law: BoxLaw) -> tuple[float, float, float]:
+        """Largest |v| / vmax, |a| / amax (tool speed included in v) and |j| / jmax of ``law``."""
+        ps, lim = self.ps, self.limits
+        vmax, amax = lim.max_velocity, lim.max_acceleration
+        jmax = lim.max_jerk if lim.max_jerk is not None else np.full(vmax.size, np.inf)
+        m = int(self.check_samples) if self.check_samples is not None else max(4000, 20 * ps.s.size)
+        ev = law.jerk_events()
+        gap = np.diff(ev)
+        keep = gap > 0
+        e0, g = ev[:-1][keep], gap[keep]
+        t = np.concatenate([np.linspace(0.0, law.duration, max(m, 10)),
+                            law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS)),
+                            e0 + 0.01 * g, e0 + 0.5 * g, e0 + 0.99 * g])
+        t = np.unique(t)
+        s, sd, sdd, sddd = law.evaluate(t)
+        assert sddd is not None
+        a, b = ps.interpolate_t(s)
+        c = _third_derivative_t(ps, self.coef3, s)
+        rv_t = (np.abs(a * sd) / vmax[:, None]).max(axis=0)
+        ra_t = (np.abs(a * sdd + b * sd**2) / amax[:, None]).max(axis=0)
+        rj_t = (np.abs(a * sddd + 3.0 * b * (sd * sdd) + c * sd**3) / jmax[:, None]).max(axis=0)
+        if self.tool is not None:
+            rv_t = np.maximum(rv_t, self.tool.ratios(s, sd))
+        rv, ra, rj = float(rv_t.max()), float(ra_t.max()), float(rj_t.max())
+        # The samples closest to a limit, with the exact path derivatives.
+        need = np.maximum(np.maximum(rv_t, np.sqrt(ra_t)), np.cbrt(rj_t))
+        k = max(1, min(EXACT_CHECKS, need.size))
+        top = np.argpartition(need, -k)[-k:]
+        q_x, a_x, b_x, c_x = (np.asarray(v, dtype=float) for v in self.path.evaluate(s[top], order=3))
+        rv, ra, rj = self._max_ratios((rv, ra, rj), a_x, b_x, c_x, sd[top], sdd[top], sddd[top])
+        if self.tool is not None:
+            rv = max(rv, float(np.max(self.tool.exact_ratios(q_x, a_x, sd[top]))))
+        # Breakpoints where q'' or q''' jumps (not a rest): both one-sided values where crossed.
+        inner = np.flatnonzero(((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1)
+                                | (ps.cL != ps.cR).any(axis=1)) & ~ps.stop)
+        if inner.size:
+            _, sd_b, sdd_b, sddd_b = law.evaluate(_crossing_times(law, t, s, ps.s[inner]))
+            assert sddd_b is not None
+            for side in ((ps.aL, ps.bL, ps.cL), (ps.aR, ps.bR, ps.cR)):
+                a_b, b_b, c_b = (arr[inner] for arr in side)
+                rv, ra, rj = self._max_ratios((rv, ra, rj), a_b, b_b, c_b, sd_b, sdd_b, sddd_b)
+            if self.tool is not None:
+                for V in (self.tool.samples.aL[inner], self.tool.samples.aR[inner]):
+                    rv = max(rv, float(np.max(self.tool.ratios_of(V.T, sd_b))))
+        return rv, ra, rj
+
+    def _max_ratios(self, prev: tuple[float, float, float], a: np.ndarray, b: np.ndarray,
+                    c: np.ndarray, sd: np.ndarray, sdd: np.ndarray, sddd: np.ndarray
+                    ) -> tuple[float, float, float]:
+        """``prev`` raised by the ratios of exact derivatives a, b, c (K, dof) at sd, sdd, sddd (K,)."""
+        lim = self.limits
+        jmax = lim.max_jerk if lim.max_jerk is not None else np.full(a.shape[1], np.inf)
+        sd, sdd, sddd = sd[:, None], sdd[:, None], sddd[:, None]
+        return (max(prev[0], float(np.max(np.abs(a * sd) / lim.max_velocity))),
+                max(prev[1], float(np.max(np.abs(a * sdd + b * sd**2) / lim.max_acceleration))),
+                max(prev[2], float(np.max(np.abs(a * sddd + 3.0 * b * sd * sdd + c * sd**3) / jmax))))
+
+
+def _reference_width(fine: PathSamples, x: np.ndarray, pieces: list[tuple[float, StarPiece]],
+                     jmax: np.ndarray) -> np.ndarray:
+    """Per piece, ``max_j A_j / jmax_j`` with A_j joint j's peak |acceleration| in s*, s."""
+    u = np.diff(x) / (2.0 * np.diff(fine.s))
+    acc = np.maximum(np.abs(fine.aR[:-1] * u[:, None] + fine.bR[:-1] * x[:-1, None]),
+                     np.abs(fine.aL[1:] * u[:, None] + fine.bL[1:] * x[1:, None]))
+    piece = np.cumsum(x[:-1] <= 0.0) - 1          # a new piece starts at every rest
+    w = np.zeros(len(pieces))
+    for i, (_, star) in enumerate(pieces):
+        w[i] = max(float((acc[piece == i] / jmax).max()), 1e-6 * star.t_star)
+    return w
+
+
+@dataclass(frozen=True)
+class JerkLimited:
+    """Fastest jerk-limited rest-to-rest law this module builds (a :class:`~.law.TimeLaw`).
+
+    Honours ``limits.max_jerk`` (required) besides the velocity, acceleration and tool limits.
+
+    Attributes:
+        grid_points: number of uniform s intervals at which the path is evaluated (>= 2).
+        refine: the time-optimal pass runs on ``refine`` times finer steps (>= 1).
+        check_samples: uniform time samples of the dense check (None: max(4000, 20 nodes)).
+    Raises:
+        LimitError: an option out of range (at construction).
+    """
+
+    grid_points: int = 100
+    refine: int = 2
+    check_samples: int | None = None
+    honours_jerk = True
+
+    def __post_init__(self) -> None:
+        if int(self.grid_points) < 2:
+            raise LimitError(f'grid_points must be >= 2, got {int(self.grid_points)}')
+        if int(self.refine) < 1:
+            raise LimitError(f'refine must be >= 1, got {self.refine}')
+
+    def __call__(self, path: PathLike, limits: JointLimits, duration: float | None) -> Trajectory:
+        """Time ``path`` within ``limits`` (jerk included); zero velocity and acceleration at every rest.
+
+        Raises:
+            LimitError: no ``limits.max_jerk``; ``duration`` shorter than the minimum (the
+                message gives it); a path that cannot be traversed or returns bad derivatives.
+        """
+        if limits.max_jerk is None:
+            raise LimitError('JerkLimited needs max_jerk')
+        ps = refine_adaptively(path, sample_path(path, int(self.grid_points)))
+        vmax, amax, jmax = limits.max_velocity, limits.max_acceleration, limits.max_jerk
+
+        def trajectory(T: float, t_min: float, **kw: object) -> Trajectory:
+            return Trajectory(path=path, joint_names=limits.joint_names, duration=float(T),
+                              max_velocity=vmax, max_acceleration=amax, min_duration=float(t_min),
+                              max_tool_speed=limits.max_tool_speed,
+                              max_tool_angular_speed=limits.max_tool_angular_speed, max_jerk=jmax,
+                              **kw)  # type: ignore[arg-type]
+
+        if ps.aR.shape[1] != vmax.size:
+            raise LimitError(f'path.evaluate returned {ps.aR.shape[1]} joints, expected {vmax.size}')
+        if float(max(np.abs(ps.aR).max(), np.abs(ps.aL).max())) == 0.0:
+            T = 0.0 if duration is None else duration
+            return trajectory(T, 0.0, topp_duration=0.0, rest_times=(0.0, float(T)))
+        tool = tool_rows(path, limits, ps)
+        fine = ps.refined(int(self.refine))
+        x_max = None if tool is None else tool.speed_cap(int(self.refine), TOPP_MARGIN)
+        checker = _Checker(path, ps, limits, tool, self.check_samples)
+        t_star = 0.0
+        best: tuple[BoxLaw, float] | None = None
+        for beta in (1.0,) + ACCEL_SCALES:
+            x = topp(fine, vmax * (1.0 - TOPP_MARGIN), beta * amax * (1.0 - TOPP_MARGIN), x_max)
+            pieces = star_pieces(fine.s, x)
+            cand = _best_width(pieces, _reference_width(fine, x, pieces, jmax), checker)
+            if best is None:
+                t_star = sum(p.t_star for _, p in pieces)
+                if cand[1] * cand[0].duration <= LOOSE * t_star:
+                    best = cand
+                    break
+            elif cand[1] * cand[0].duration >= best[1] * best[0].duration:
+                break
+            best = cand
+        assert best is not None
+        law, lam = best
+        t_min = lam * law.duration
+        if duration is None:
+            T = t_min
+        else:
+            if duration < t_min * (1.0 - 1e-12):
+                raise LimitError(
+                    f'duration {duration:.6g} s is shorter than the minimum {t_min:.6g} s for these limits')
+            T = duration
+        scale = float(T / law.duration)
+        rest_times = tuple(float(t) * scale for t in law.t_offsets[:-1]) + (float(T),)
+        return trajectory(T, t_min, topp_duration=t_star, rests=law.rests, rest_times=rest_times,
+                          scaling=law, time_scale=scale)
+
+
+def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checker: _Checker
+                ) -> tuple[BoxLaw, float]:
+    """The width factor with the shortest checked duration: (law, its stretch)."""
+    cache: dict[float, tuple[float, BoxLaw, float]] = {}
+
+    def total(log_c: float) -> float:
+        if log_c not in cache:
+            law = build_box_law(pieces, math.exp(log_c) * w_ref)
+            lam = checker.stretch(law)
+            cache[log_c] = (lam * law.duration, law, lam)
+        return cache[log_c][0]
+
+    grid = [math.log(c) for c in WIDTH_SCAN]
+    values = [total(g) for g in grid]
+    i = int(np.argmin(values))
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    ratio = (math.sqrt(5.0) - 1.0) / 2.0
+    a, b = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+    for _ in range(GOLDEN_STEPS):
+        if total(a) <= total(b):
+            hi, b = b, a
+            a = hi - ratio * (hi - lo)
+        else:
+            lo, a = a, b
+            b = lo + ratio * (hi - lo)
+    _, law, lam = min(cache.values(), key=lambda item: item[0])
+    return law, lam
+
+
+__all__ = ['BoxLaw', 'JerkLimited', 'StarPiece', 'build_box_law', 'star_pieces']
