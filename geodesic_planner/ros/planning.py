@@ -114,6 +114,7 @@ class PlannerConfig:
         velocity_scaling: time scaling factor in (0, 1].
         sample_period: s.
         plan_timeout: s.
+        max_jerk: unscaled jerk limits, shape (dof,), rad/s^3 (m/s^3), or None (no jerk limit).
         max_tool_speed: m/s, or None (no limit).
         max_tool_angular_speed: rad/s, or None (no limit).
         allowed_start_tolerance: rad (m), 0: no start-state check.
@@ -135,6 +136,7 @@ class PlannerConfig:
     plan_timeout: float
     max_tool_speed: float | None = None
     max_tool_angular_speed: float | None = None
+    max_jerk: np.ndarray | None = None
     allowed_start_tolerance: float = 0.0
     default_velocity_factor: float = 1.0
     default_acceleration_factor: float = 1.0
@@ -202,8 +204,9 @@ def _is_urdf_source(robot: str, robot_description: str) -> bool:
 
 
 def _joint_limits_file(path: str, robot: Chain, accel_known: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray, float, float, list[str]]:
-    """Velocity and acceleration limits, default scaling factors and notes from a joint_limits.yaml."""
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float, list[str]]:
+    """Velocity, acceleration and jerk limits (NaN: none), default scaling factors and notes
+    from a joint_limits.yaml."""
     try:
         limits = load_joint_limits(path)
     except GeodesicPlannerError as err:
@@ -211,6 +214,7 @@ def _joint_limits_file(path: str, robot: Chain, accel_known: np.ndarray
     limited, notes = apply_joint_limits(robot, limits)
     accel_known |= ~np.isnan(limits.per_joint('acceleration', robot.joint_names))
     return (limited.max_velocity.copy(), limited.max_acceleration.copy(),
+            limits.per_joint('jerk', robot.joint_names),
             limits.default_velocity_scaling_factor, limits.default_acceleration_scaling_factor,
             [f'joint_limits: {n}' for n in notes])
 
@@ -266,9 +270,20 @@ def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) 
     velocity, acceleration = robot.max_velocity, robot.max_acceleration
     default_fv = default_fa = 1.0
     notes: list[str] = []
+    jerk = np.full(robot.dof, np.nan)
     if str(values['joint_limits']).strip():
-        velocity, acceleration, default_fv, default_fa, notes = _joint_limits_file(
+        velocity, acceleration, jerk, default_fv, default_fa, notes = _joint_limits_file(
             str(values['joint_limits']), robot, accel_known)
+    jerk = _limits('max_jerk', values['max_jerk'], jerk, robot.dof)
+    if np.isnan(jerk).all():
+        max_jerk = None
+    elif np.isnan(jerk).any():
+        max_jerk = None
+        missing = [n for n, j in zip(robot.joint_names, jerk) if np.isnan(j)]
+        notes.append(f'jerk limits not applied: joints {missing} have none (joint_limits gives '
+                     'some joints one; set max_jerk for every joint to limit the jerk)')
+    else:
+        max_jerk = jerk
     max_velocity = _limits('max_velocity', values['max_velocity'], velocity, robot.dof)
     max_acceleration = _limits('max_acceleration', values['max_acceleration'],
                                acceleration, robot.dof)
@@ -298,6 +313,7 @@ def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) 
         max_velocity=max_velocity, max_acceleration=max_acceleration,
         velocity_scaling=scaling, sample_period=sample_period, plan_timeout=plan_timeout,
         max_tool_speed=tool_speed or None, max_tool_angular_speed=tool_angular_speed or None,
+        max_jerk=max_jerk,
         allowed_start_tolerance=float(values['allowed_start_tolerance']),
         default_velocity_factor=default_fv, default_acceleration_factor=default_fa,
         notes=tuple(notes))
@@ -439,13 +455,15 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
     t1 = time.perf_counter()
     fv = config.velocity_scaling * (velocity_factor or config.default_velocity_factor)
     fa = config.velocity_scaling ** 2 * (acceleration_factor or config.default_acceleration_factor)
-    tool: dict[str, Any] = {}  # keyword arguments of path.timed (floats here)
+    limits: dict[str, Any] = {}  # the optional limits of path.timed
     if config.max_tool_speed is not None:
-        tool['max_tool_speed'] = config.max_tool_speed * fv
+        limits['max_tool_speed'] = config.max_tool_speed * fv
     if config.max_tool_angular_speed is not None:
-        tool['max_tool_angular_speed'] = config.max_tool_angular_speed * fv
+        limits['max_tool_angular_speed'] = config.max_tool_angular_speed * fv
+    if config.max_jerk is not None:     # time scaling by f multiplies jerk by f^3
+        limits['max_jerk'] = config.max_jerk * config.velocity_scaling ** 3
     trajectory = path.timed(max_velocity=config.max_velocity * fv,
-                            max_acceleration=config.max_acceleration * fa, **tool)
+                            max_acceleration=config.max_acceleration * fa, **limits)
     points = int(trajectory.duration / config.sample_period) + 2
     if points > MAX_POINTS:
         raise PlanningFailedError(

@@ -50,7 +50,7 @@ DELIBERATE = {
 }
 #: Parameters a config file leaves out on purpose, as a commented line (rcl cannot read an empty
 #: array from a parameter file; record_topics' default is computed by the node).
-COMMENTED = {'joint_names', 'max_velocity', 'max_acceleration', 'record_topics'}
+COMMENTED = {'joint_names', 'max_velocity', 'max_acceleration', 'max_jerk', 'record_topics'}
 
 
 def load_launch(path: Path = LAUNCH_FILE) -> types.ModuleType:

@@ -450,3 +450,25 @@ def test_huge_user_strings_are_cut_short(planar: Planner) -> None:
     resp = planar.plan(plan_request(goal_joints=[0.1, 0.2, 0.3], names=['joint1', 'joint2', huge]))
     assert resp.error_code.val == PlanErrorCode.INVALID_REQUEST
     assert '(1000000 characters)' in resp.message and len(resp.message) < 400, len(resp.message)
+
+
+def test_jerk_limit_honoured(planar: Planner) -> None:
+    """max_jerk: the jerk between the published accelerations (2 ms apart) never exceeds it, and
+    the plan is slower than without it."""
+    free = planar.plan(plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R)))
+    a_free = cv.joint_trajectory_to_arrays(free.trajectory)
+    jerk_limit = 2.0                                          # rad/s^3, binding for this move
+    planar.set_parameters(max_jerk=[jerk_limit], sample_period=0.002)
+    try:
+        resp = planar.plan(plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R)))
+    finally:
+        planar.set_parameters(max_jerk=[], sample_period=0.01)
+    assert resp.error_code.val == OK, resp.message
+    arr = check_controller_contract(resp.trajectory, ROBOT_3R.joint_names)
+    check_line_phi_3r(arr)                                     # the same path
+    check_limits(arr, ROBOT_3R.max_velocity, ROBOT_3R.max_acceleration)
+    # mean jerk over each 2 ms step, from the published accelerations (independent of the law)
+    jerk = np.diff(arr.accelerations, axis=0) / np.diff(arr.t)[:, None]
+    assert np.abs(jerk).max() <= jerk_limit * (1 + 1e-6), np.abs(jerk).max()
+    assert np.abs(jerk).max() >= 0.9 * jerk_limit              # it binds
+    assert arr.t[-1] > a_free.t[-1]
