@@ -19,7 +19,8 @@ class PiecewiseGeodesicPath(JointPath):
     """Geodesic pieces joined at via points, scaled to equal metric speed.
 
     Attributes:
-        pieces: the geodesic pieces, in order.
+        pieces: the geodesic pieces, in order (pieces that do not move are dropped).
+        kept: index of each kept piece among the pieces given (piece i runs from via point i).
         breakpoints: global s of the junctions, (len(pieces) + 1,), from 0 to 1.
         length: total metric length (= constant metric speed over s ∈ [0, 1]).
         solver: aggregate SolverReport (worst status/residual, summed iterations and time).
@@ -33,6 +34,7 @@ class PiecewiseGeodesicPath(JointPath):
         if not np.any(keep):
             keep[0] = True
         self.pieces = [p for p, k in zip(pieces, keep) if k]
+        self.kept = np.flatnonzero(keep)   # indices of the kept pieces in the given sequence
         lengths = lengths[keep]
         self.robot = self.pieces[0].robot
         self.metric = self.pieces[0].metric

@@ -35,6 +35,7 @@ from .polynomials import QuinticHermite
 from .transforms import check_transform, hat, line_slerp, so3_log
 
 if TYPE_CHECKING:
+    from .blend import BlendedPath
     from .piecewise import PiecewiseGeodesicPath
 
 #: Default collocation tolerance (solve_bvp's relative residual). On the paper's 3R example and
@@ -429,24 +430,34 @@ class GeodesicPlanner:
 
     def plan_through(self, poses: Sequence[np.ndarray | None], start_joints: object = None, *,
                      tolerance: float | None = None, start_seed: object = None,
-                     method: str = 'auto') -> PiecewiseGeodesicPath:
+                     method: str = 'auto',
+                     blend_radius: float | Sequence[float] | np.ndarray = 0.0) -> PiecewiseGeodesicPath | BlendedPath:
         """Piecewise geodesic through via points with the paper's trajectory scaling (eq. 10).
+
+        With ``blend_radius`` > 0 the corner at each via point is replaced by a blend zone within
+        that distance of the via point (:mod:`.blend`): the timed motion passes without stopping,
+        and outside the zones the path is still the exact geodesic.
 
         Args:
             poses: [T0, T1, ..., TN] 4x4 transforms; T0 may be None when start_joints is given.
             start_joints: joints at T0 (then T0 is only informational).
             start_seed: (dof,) seed of T0's IK (e.g. the current joint state).
             method: as in :meth:`plan`, for every piece ('collocation': IK at the via points only).
+            blend_radius: m, one value or one per via point (poses[1:-1]); 0 (default): rest at
+                the via point (exact corner).
         Returns:
-            PiecewiseGeodesicPath with the same evaluate(s) contract over s ∈ [0, 1].
+            PiecewiseGeodesicPath (no blends), else BlendedPath (its ``zones`` report the blends);
+            both with the same evaluate(s) contract over s ∈ [0, 1].
         Raises:
-            RequestError: fewer than 2 poses; any error of plan().
+            RequestError: fewer than 2 poses, a bad blend radius; any error of plan().
         """
+        from .blend import BlendedPath, check_radii
         from .piecewise import PiecewiseGeodesicPath
         method = check_method(method)
         poses = list(poses)
         if len(poses) < 2:
             raise RequestError(f'plan_through: needs at least 2 poses (start and goal), got {len(poses)}')
+        radii = check_radii(blend_radius, len(poses) - 2)
         t0 = time.perf_counter()
         # Validate every via point before solving anything, so a bad one is named as such.
         first = None if poses[0] is None else check_transform(poses[0], 'via point 0')
@@ -467,4 +478,8 @@ class GeodesicPlanner:
             pieces.append(self._solve(q_prev, q_next, ik_a if i == 1 else None, ik_b, time.perf_counter(),
                                       method))
             q_prev = q_next
-        return PiecewiseGeodesicPath(pieces, (time.perf_counter() - t0) * 1e3)
+        path = PiecewiseGeodesicPath(pieces, (time.perf_counter() - t0) * 1e3)
+        if not np.any(radii > 0.0) or len(path.pieces) < 2:
+            return path
+        kept = path.kept[1:]                 # via point (pose index) at each kept junction
+        return BlendedPath(path, radii[kept - 1], via_index=kept.tolist())

@@ -7,6 +7,7 @@
       orientation: {x: 0.0, y: 0.0, z: 0.2588, w: 0.9659}
     goal: {...}                 # or start_joints: [...] / goal_joints: [...]
     via: [{...}, ...]           # optional intermediate poses (piecewise geodesic)
+    blend_radius: 0.02          # optional, m: pass each via pose within this distance without stopping
     tolerance: 0.001            # optional: allowed distance to the nearest reachable pose
     method: auto                # optional: auto (pull-back where it applies) | collocation (IK at the ends only)
 """
@@ -27,12 +28,13 @@ from ..core.robots import load_robot
 from ..core.transforms import pose_from_mapping
 
 if TYPE_CHECKING:
+    from ..core.blend import BlendedPath
     from ..core.geodesic import GeodesicPath
     from ..core.piecewise import PiecewiseGeodesicPath
 
 KNOWN_KEYS = {'robot', 'metric', 'position_weight', 'orientation_weight', 'epsilon', 'start', 'goal',
               'start_joints', 'goal_joints', 'via', 'tolerance', 'base_link', 'tip_link', 'description',
-              'method'}
+              'method', 'blend_radius'}
 
 
 @dataclass
@@ -48,14 +50,17 @@ class PlanRequest:
     tolerance: float | None = None
     planner_options: dict[str, Any] = field(default_factory=dict)
     method: str = 'auto'
+    blend_radius: float = 0.0
 
     def planner(self) -> GeodesicPlanner:
         """A planner for this request's robot and metric options."""
         return GeodesicPlanner(self.robot, **self.planner_options)
 
     def plan(self, planner: GeodesicPlanner | None = None, *,
-             start_seed: np.ndarray | None = None) -> GeodesicPath | PiecewiseGeodesicPath:
-        """Plan it: a geodesic, or a piecewise geodesic when via points are given.
+             start_seed: np.ndarray | None = None
+             ) -> GeodesicPath | PiecewiseGeodesicPath | BlendedPath:
+        """Plan it: a geodesic, or a piecewise geodesic when via points are given (blended at the
+        via points when ``blend_radius`` > 0).
 
         ``start_seed`` (dof,) seeds the start pose's IK (e.g. the robot's current joint state).
         """
@@ -65,7 +70,7 @@ class PlanRequest:
                 raise RequestError('via points need a goal pose (goal_joints cannot end a via sequence)')
             return planner.plan_through([self.start, *self.via, self.goal], self.start_joints,
                                         tolerance=self.tolerance, start_seed=start_seed,
-                                        method=self.method)
+                                        method=self.method, blend_radius=self.blend_radius)
         return planner.plan(self.start, self.goal, self.start_joints, self.goal_joints,
                             tolerance=self.tolerance, start_seed=start_seed, method=self.method)
 
@@ -110,8 +115,12 @@ def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
         method = check_method(data.get('method', 'auto'))
     except RequestError as err:
         raise RequestError(f'request: {err}') from err
+    blend = 0.0 if data.get('blend_radius') is None else _number(data['blend_radius'], 'blend_radius')
+    if blend < 0.0:
+        raise RequestError(f'request: blend_radius must be >= 0 m, got {blend!r}')
     req = PlanRequest(robot, pose('start'), pose('goal'), joints('start_joints'), joints('goal_joints'),
-                      [pose_from_mapping(v, f'via[{i}]') for i, v in enumerate(via)], tol, opts, method)
+                      [pose_from_mapping(v, f'via[{i}]') for i, v in enumerate(via)], tol, opts, method,
+                      blend)
     if req.start is None and req.start_joints is None:
         raise RequestError('request: give start (a Pose) or start_joints')
     if req.goal is None and req.goal_joints is None:
