@@ -10,14 +10,19 @@
    of ``s*`` (constant before its start and after its end). Hence ``sddot`` is the second central
    difference of ``s*`` (continuous), the jerk is bounded, and every rest has zero velocity AND
    zero acceleration. Each piece lasts ``T* + 2 tau``.
-3. **Guarantee**: the law is checked on a dense time grid against the full limits (plus samples
+3. **Local slow-down**: where the smoothed law exceeds a limit by more than LOCAL_TRIGGER (a
+   sharp dip of the optimal speed that the kernel cannot follow, e.g. a blend around a via
+   point), the optimal profile is capped near the offending samples (x divided by their speed
+   factor over the stretch of path the kernel mixes in, ``t +- tau``) and smoothed again, up to
+   LOCAL_PASSES times; the shortest law after step 4 is kept. Laws within LOCAL_TRIGGER skip it.
+4. **Guarantee**: the law is checked on a dense time grid against the full limits (plus samples
    about uniform in s, placed from the nodes of ``s*`` delayed by tau, where the law crosses the
    path fast); if smoothing pushed any joint (or the tool) over a limit, time is stretched uniformly
    (``t -> lambda t`` divides velocities by ``lambda`` and accelerations by ``lambda^2``) until
    every sample is within ``1 - CHECK_MARGIN`` of the limits; the samples nearest a limit are
    re-checked with the exact path derivatives. ``min_duration / topp_duration`` is about
-   ``1 + smoothing``.
-4. ``duration=`` stretches the law uniformly to exactly that duration (never shorter than the
+   ``1 + smoothing`` on paths without such dips.
+5. ``duration=`` stretches the law uniformly to exactly that duration (never shorter than the
    minimum, which the error names).
 """
 from __future__ import annotations
@@ -44,6 +49,13 @@ CHECK_MARGIN = 1e-3
 EXACT_CHECKS = 32
 #: Extra limit-check samples spread uniformly in s (mapped to t).
 S_UNIFORM_CHECKS = 1000
+#: Local slow-down passes (see SmoothRestToRest) when the smoothed law needs a stretch above
+#: LOCAL_TRIGGER; each caps the optimal profile near the samples over a limit, LOCAL_MARGIN below.
+LOCAL_PASSES = 8
+LOCAL_TRIGGER = 1.01
+LOCAL_MARGIN = 0.01
+LOCAL_WINDOW = 1.0
+LOCAL_POWER = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -335,7 +347,21 @@ class SmoothRestToRest:
         x_max = None if tool is None else tool.speed_cap(int(self.refine), TOPP_MARGIN)
         x = topp(fine, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN), x_max)
         law = build_piecewise_law(fine.s, x, float(self.smoothing))
-        t_min = _stretch(path, ps, law, vmax, amax, self.check_samples, tool) * law.duration
+        check = _stretch(path, ps, law, vmax, amax, self.check_samples, tool)
+        t_min = check.factor * law.duration
+        topp_duration = law.t_star
+        # Local slow-down: where smoothing pushed the law over a limit, cap the optimal profile
+        # near there and smooth again, instead of stretching the whole motion.
+        cap = x_max
+        for _ in range(LOCAL_PASSES if check.factor > LOCAL_TRIGGER else 0):
+            cap = _local_cap(fine.s, x, law, check, cap)
+            x = topp(fine, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN), cap)
+            trial = build_piecewise_law(fine.s, x, float(self.smoothing))
+            check = _stretch(path, ps, trial, vmax, amax, self.check_samples, tool)
+            if check.factor * trial.duration < t_min:
+                law, t_min = trial, check.factor * trial.duration
+            if check.factor <= LOCAL_TRIGGER:
+                break
         if duration is None:
             T = t_min
         else:
@@ -346,14 +372,48 @@ class SmoothRestToRest:
         scale = float(T / law.duration)
         rest_times = tuple(float(t) * scale for t in law.t_offsets[:-1]) + (float(T),)
         return Trajectory(path=path, joint_names=joint_names, duration=float(T), max_velocity=vmax,
-                          max_acceleration=amax, topp_duration=law.t_star, min_duration=float(t_min),
+                          max_acceleration=amax, topp_duration=topp_duration, min_duration=float(t_min),
                           rests=law.rests, rest_times=rest_times, scaling=law, time_scale=scale,
                           max_tool_speed=limits.max_tool_speed,
                           max_tool_angular_speed=limits.max_tool_angular_speed)
 
 
+@dataclass(frozen=True, eq=False)
+class LimitCheck:
+    """Result of the dense check of a law: the uniform stretch it needs, and where.
+
+    ``need`` is each sample's largest ratio to the limits, as a speed factor (velocity ratio, or
+    the square root of the acceleration ratio), divided by ``1 - CHECK_MARGIN``.
+    """
+
+    factor: float          # uniform time stretch (>= 1) that keeps every sample within the limits
+    t: np.ndarray          # (M,) check times of the law, s
+    need: np.ndarray       # (M,) speed factor over the limits at each (interpolated path derivatives)
+
+
+def _local_cap(s_nodes: np.ndarray, x: np.ndarray, law: PiecewiseLaw, check: LimitCheck,
+               cap: np.ndarray | None) -> np.ndarray:
+    """A cap on x = sdot^2 (per node) that slows the optimal profile where the smoothed law
+    exceeded a limit: over the path stretch the kernel mixed into each offending sample
+    (its time +- 2 tau), x is divided by the sample's speed factor squared."""
+    out = np.full(s_nodes.size, np.inf) if cap is None else np.array(cap, dtype=float)
+    bad = np.flatnonzero(check.need > 1.0 + LOCAL_MARGIN)
+    if bad.size == 0:
+        return out
+    tau = float(law.pieces[0].max())
+    t = check.t[bad]
+    s_lo = law.evaluate(t - LOCAL_WINDOW * tau, jerk=False)[0]
+    s_hi = law.evaluate(t + LOCAL_WINDOW * tau, jerk=False)[0]
+    lo = np.searchsorted(s_nodes, s_lo, side='left')
+    hi = np.searchsorted(s_nodes, s_hi, side='right')
+    factor = np.ones(s_nodes.size)
+    for a, b, f in zip(lo.tolist(), hi.tolist(), check.need[bad].tolist()):
+        np.maximum(factor[a:b], f, out=factor[a:b])
+    return np.minimum(out, x / factor**LOCAL_POWER * (1.0 - LOCAL_MARGIN))
+
+
 def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarray, amax: np.ndarray,
-             check_samples: int | None, tool: ToolRows | None = None) -> float:
+             check_samples: int | None, tool: ToolRows | None = None) -> LimitCheck:
     """Uniform time stretch (>= 1) that keeps ``law`` within ``1 - CHECK_MARGIN`` of the limits.
 
     Dense check of the smoothed law against the full limits, with q', q'' interpolated from
@@ -406,7 +466,8 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
             for V in (tool.samples.aL[inner], tool.samples.aR[inner]):
                 rv = max(rv, float(np.max(tool.ratios_of(V.T, sd_b))))
     target = 1.0 - CHECK_MARGIN
-    return max(1.0, rv / target, math.sqrt(ra / target))
+    need /= target
+    return LimitCheck(max(1.0, rv / target, math.sqrt(ra / target)), t_chk, need)
 
 
 __all__ = ['CHECK_MARGIN', 'TOPP_MARGIN', 'PiecewiseLaw', 'SmoothRestToRest', 'build_piecewise_law']
