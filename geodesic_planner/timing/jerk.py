@@ -19,10 +19,13 @@ q(s) never changes, only s(t).
    uniform time stretch ``lambda`` divides velocities, accelerations and jerks by ``lambda``,
    ``lambda^2``, ``lambda^3`` exactly, so the smallest admissible ``lambda`` follows from the
    largest ratios. ``c`` is chosen by a coarse scan and golden-section search for the shortest
-   duration ``lambda(c) * sum(T* + c w_ref)``. When the jerk binds (the result is more than
-   LOOSE times the v/a-optimal duration), the optimal pass is repeated with the acceleration
-   limits scaled by ACCEL_SCALES, keeping the shortest law: gentler accelerations allow gentler
-   ramps (on a line where amax is not reached the 7-segment optimum peaks at sqrt(vmax jmax)).
+   duration ``lambda(c) * sum(T* + c w_ref)``. If the best law still needs a stretch above
+   LOCAL_TRIGGER, the optimal profile is capped near the samples over a limit and filtered again
+   with the same window (:func:`.smoothing.local_cap`), keeping the shortest law. When the jerk
+   binds (the result is more than LOOSE times the v/a-optimal duration), the optimal pass is
+   repeated with the acceleration limits scaled by ACCEL_SCALES, keeping the shortest law: gentler
+   accelerations allow gentler ramps (on a line where amax is not reached the 7-segment optimum
+   peaks at sqrt(vmax jmax)).
 4. ``duration=`` stretches the law uniformly (never shorter than the minimum).
 """
 from __future__ import annotations
@@ -38,7 +41,7 @@ from ..core.errors import LimitError
 from ._arrays import clip
 from .law import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
-from .smoothing import CHECK_MARGIN, TOPP_MARGIN
+from .smoothing import CHECK_MARGIN, LOCAL_PASSES, TOPP_MARGIN, local_cap
 from .tool import ToolRows, tool_rows
 from .topp import topp
 from .trajectory import Trajectory
@@ -55,6 +58,9 @@ GOLDEN_STEPS = 5
 #: scale that does not shorten the law (lower accelerations allow longer, gentler ramps).
 ACCEL_SCALES = (0.7, 0.5, 0.35, 0.25)
 LOOSE = 1.1
+#: Local slow-down passes (:func:`_local_passes`) run when the best law still needs a uniform
+#: stretch above this (a dip of the optimal speed the filter cannot follow, e.g. a blend).
+LOCAL_TRIGGER = 1.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -240,8 +246,16 @@ class _Checker:
         target = 1.0 - CHECK_MARGIN
         return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target))
 
-    def ratios(self, law: BoxLaw) -> tuple[float, float, float]:
-        """Largest |v| / vmax, |a| / amax (tool speed included in v) and |j| / jmax of ``law``."""
+    def need(self, law: BoxLaw) -> tuple[np.ndarray, np.ndarray]:
+        """Check times (M,) and each one's speed factor over the limits (interpolated path
+        derivatives): max(v ratio, sqrt(a ratio), cbrt(j ratio)) / (1 - CHECK_MARGIN)."""
+        t, _, rv_t, ra_t, rj_t = self._dense(law)
+        need = np.maximum(np.maximum(rv_t, np.sqrt(ra_t)), np.cbrt(rj_t))
+        return t, need / (1.0 - CHECK_MARGIN)
+
+    def _dense(self, law: BoxLaw) -> tuple[np.ndarray, tuple[np.ndarray, ...], np.ndarray,
+                                           np.ndarray, np.ndarray]:
+        """The dense grid: times, (s, sd, sdd, sddd) there, and per-sample v, a, j ratios."""
         ps, lim = self.ps, self.limits
         vmax, amax = lim.max_velocity, lim.max_acceleration
         jmax = lim.max_jerk if lim.max_jerk is not None else np.full(vmax.size, np.inf)
@@ -263,6 +277,12 @@ class _Checker:
         rj_t = (np.abs(a * sddd + 3.0 * b * (sd * sdd) + c * sd**3) / jmax[:, None]).max(axis=0)
         if self.tool is not None:
             rv_t = np.maximum(rv_t, self.tool.ratios(s, sd))
+        return t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t
+
+    def ratios(self, law: BoxLaw) -> tuple[float, float, float]:
+        """Largest |v| / vmax, |a| / amax (tool speed included in v) and |j| / jmax of ``law``."""
+        ps = self.ps
+        t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t = self._dense(law)
         rv, ra, rj = float(rv_t.max()), float(ra_t.max()), float(rj_t.max())
         # The samples closest to a limit, with the exact path derivatives.
         need = np.maximum(np.maximum(rv_t, np.sqrt(ra_t)), np.cbrt(rj_t))
@@ -366,6 +386,7 @@ class JerkLimited:
         checker = _Checker(path, ps, limits, tool, self.check_samples)
         t_star = 0.0
         best: tuple[BoxLaw, float] | None = None
+        best_x, best_beta = np.zeros(0), 1.0
         for beta in (1.0,) + ACCEL_SCALES:
             x = topp(fine, vmax * (1.0 - TOPP_MARGIN), beta * amax * (1.0 - TOPP_MARGIN), x_max)
             pieces = star_pieces(fine.s, x)
@@ -373,13 +394,15 @@ class JerkLimited:
             if best is None:
                 t_star = sum(p.t_star for _, p in pieces)
                 if cand[1] * cand[0].duration <= LOOSE * t_star:
-                    best = cand
+                    best, best_x, best_beta = cand, x, beta
                     break
             elif cand[1] * cand[0].duration >= best[1] * best[0].duration:
                 break
-            best = cand
+            best, best_x, best_beta = cand, x, beta
         assert best is not None
         law, lam = best
+        if lam > LOCAL_TRIGGER:     # a local dip the filter cannot follow: slow down near it
+            law, lam = _local_passes(fine, best_x, best_beta, best, checker, x_max, jmax)
         t_min = lam * law.duration
         if duration is None:
             T = t_min
@@ -392,6 +415,31 @@ class JerkLimited:
         rest_times = tuple(float(t) * scale for t in law.t_offsets[:-1]) + (float(T),)
         return trajectory(T, t_min, topp_duration=t_star, rests=law.rests, rest_times=rest_times,
                           scaling=law, time_scale=scale)
+
+
+def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[BoxLaw, float],
+                  checker: _Checker, x_max: np.ndarray | None, jmax: np.ndarray
+                  ) -> tuple[BoxLaw, float]:
+    """Cap the optimal profile near the samples over a limit and filter again (as in
+    :mod:`.smoothing`, step 3), keeping the shortest checked law; (law, its stretch)."""
+    lim = checker.limits
+    law, lam, cap = best[0], best[1], x_max
+    for _ in range(LOCAL_PASSES):
+        t, need = checker.need(law)
+        cap = local_cap(fine.s, x, law, t, need, float(law.width.max()), cap)
+        x = topp(fine, lim.max_velocity * (1.0 - TOPP_MARGIN),
+                 beta * lim.max_acceleration * (1.0 - TOPP_MARGIN), cap)
+        pieces = star_pieces(fine.s, x)
+        if len(pieces) != law.width.size:      # the rests moved: search the width again
+            law, lam = _best_width(pieces, _reference_width(fine, x, pieces, jmax), checker)
+        else:                                  # keep the window: one check per pass
+            law = build_box_law(pieces, law.width)
+            lam = checker.stretch(law)
+        if lam * law.duration < best[1] * best[0].duration:
+            best = (law, lam)
+        if lam <= 1.0 + CHECK_MARGIN:
+            break
+    return best
 
 
 def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checker: _Checker

@@ -354,7 +354,8 @@ class SmoothRestToRest:
         # near there and smooth again, instead of stretching the whole motion.
         cap = x_max
         for _ in range(LOCAL_PASSES if check.factor > LOCAL_TRIGGER else 0):
-            cap = _local_cap(fine.s, x, law, check, cap)
+            cap = local_cap(fine.s, x, law, check.t, check.need,
+                            LOCAL_WINDOW * float(law.pieces[0].max()), cap)
             x = topp(fine, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN), cap)
             trial = build_piecewise_law(fine.s, x, float(self.smoothing))
             check = _stretch(path, ps, trial, vmax, amax, self.check_samples, tool)
@@ -391,23 +392,26 @@ class LimitCheck:
     need: np.ndarray       # (M,) speed factor over the limits at each (interpolated path derivatives)
 
 
-def _local_cap(s_nodes: np.ndarray, x: np.ndarray, law: PiecewiseLaw, check: LimitCheck,
-               cap: np.ndarray | None) -> np.ndarray:
-    """A cap on x = sdot^2 (per node) that slows the optimal profile where the smoothed law
-    exceeded a limit: over the path stretch the kernel mixed into each offending sample
-    (its time +- 2 tau), x is divided by the sample's speed factor squared."""
+def local_cap(s_nodes: np.ndarray, x: np.ndarray, law: object, t: np.ndarray, need: np.ndarray,
+              window: float, cap: np.ndarray | None) -> np.ndarray:
+    """A cap on x = sdot^2 (per node of ``s_nodes``) that slows the optimal profile ``x`` where
+    a filtered law exceeded a limit: over the path the law crosses within ``window`` (s of time)
+    of each sample with ``need`` > 1 + LOCAL_MARGIN (its speed factor over the limits), x is
+    divided by that factor (``LOCAL_POWER``), LOCAL_MARGIN below; ``cap``: the previous cap.
+
+    ``law.evaluate(t)`` must return s first (the smoothed and the box-filtered laws do).
+    """
     out = np.full(s_nodes.size, np.inf) if cap is None else np.array(cap, dtype=float)
-    bad = np.flatnonzero(check.need > 1.0 + LOCAL_MARGIN)
+    bad = np.flatnonzero(need > 1.0 + LOCAL_MARGIN)
     if bad.size == 0:
         return out
-    tau = float(law.pieces[0].max())
-    t = check.t[bad]
-    s_lo = law.evaluate(t - LOCAL_WINDOW * tau, jerk=False)[0]
-    s_hi = law.evaluate(t + LOCAL_WINDOW * tau, jerk=False)[0]
+    tb = t[bad]
+    s_lo = law.evaluate(tb - window, jerk=False)[0]        # type: ignore[attr-defined]
+    s_hi = law.evaluate(tb + window, jerk=False)[0]        # type: ignore[attr-defined]
     lo = np.searchsorted(s_nodes, s_lo, side='left')
     hi = np.searchsorted(s_nodes, s_hi, side='right')
     factor = np.ones(s_nodes.size)
-    for a, b, f in zip(lo.tolist(), hi.tolist(), check.need[bad].tolist()):
+    for a, b, f in zip(lo.tolist(), hi.tolist(), need[bad].tolist()):
         np.maximum(factor[a:b], f, out=factor[a:b])
     return np.minimum(out, x / factor**LOCAL_POWER * (1.0 - LOCAL_MARGIN))
 
@@ -470,4 +474,5 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
     return LimitCheck(max(1.0, rv / target, math.sqrt(ra / target)), t_chk, need)
 
 
-__all__ = ['CHECK_MARGIN', 'TOPP_MARGIN', 'PiecewiseLaw', 'SmoothRestToRest', 'build_piecewise_law']
+__all__ = ['CHECK_MARGIN', 'LOCAL_PASSES', 'LOCAL_TRIGGER', 'TOPP_MARGIN', 'PiecewiseLaw',
+           'SmoothRestToRest', 'build_piecewise_law', 'local_cap']
