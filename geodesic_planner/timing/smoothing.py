@@ -54,6 +54,10 @@ S_UNIFORM_CHECKS = 1000
 LOCAL_PASSES = 8
 LOCAL_TRIGGER = 1.01
 LOCAL_MARGIN = 0.01
+#: A speed valley inside a rest-to-rest piece is deep when sdot drops below this fraction of the
+#: peak speed on both sides; the kernel of a piece with k deep valleys is (1 + k) times narrower
+#: (its ramps take ``smoothing`` of the time between valleys, as between rests).
+VALLEY_DEPTH = 0.5
 LOCAL_WINDOW = 1.0
 LOCAL_POWER = 1.0
 
@@ -204,6 +208,20 @@ class PiecewiseLaw:
         return s, sd, sdd, sddd
 
 
+def _valleys(x: np.ndarray, rests: np.ndarray) -> np.ndarray:
+    """Per rest-to-rest piece, the number of deep speed valleys inside it (sdot below
+    VALLEY_DEPTH times the peak speed on both sides, e.g. a blend around a via point)."""
+    v = np.sqrt(np.maximum(x, 0.0))
+    out = np.zeros(rests.size - 1)
+    for i, (a, b) in enumerate(zip(rests[:-1].tolist(), rests[1:].tolist())):
+        w = v[a:b + 1]
+        left = np.maximum.accumulate(w)
+        right = np.maximum.accumulate(w[::-1])[::-1]
+        deep = w < VALLEY_DEPTH * np.minimum(left, right)
+        out[i] = np.count_nonzero(deep[1:] & ~deep[:-1])
+    return out
+
+
 def build_piecewise_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) -> PiecewiseLaw:
     """Split the optimal profile at its rests (x = 0) and smooth each rest-to-rest piece.
 
@@ -244,7 +262,7 @@ def build_piecewise_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) ->
     S2e, S2s = running(S1s * dt + rel0 * dt**2 / 2.0 + v0 * dt**3 / 6.0 + u * dt**4 / 24.0)
     last = np.cumsum(n_steps) - 1                  # last step of each piece
     t_star = t1[last]
-    tau = 0.5 * smoothing * t_star
+    tau = 0.5 * smoothing * t_star / (1.0 + _valleys(x, rests))
     dur = t_star + 2.0 * tau
     offsets = np.concatenate([[0.0], np.cumsum(dur)])
     span = rel1[last]
