@@ -2,8 +2,9 @@
 
 Oracles: closed-form IK and FK of the planar 3R arm (both elbow branches), the straight line
 with linear phi, the polyline through the via poses (blends: the balls of blend_radius around
-them), the robot's and a joint_limits.yaml's limits, forward kinematics of the URDF model. Waits are on replies and messages, with deadlines; "nothing was published" is proven by a
-later message that must arrive first (one publisher, reliable, in order).
+them), the robot's and a joint_limits.yaml's limits, forward kinematics of the URDF model.
+Waits are on replies and messages, with deadlines; "nothing was published" is proven by a later
+message that must arrive first (one publisher, reliable, in order).
 """
 from __future__ import annotations
 
