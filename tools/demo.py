@@ -14,9 +14,14 @@ namespace). Steps:
    from its home pose to the pose of home + 0.3 rad (or m) on every joint);
 4. receive the trajectory on ``/geodesic_planner/joint_trajectory`` and the processed one on
    ``/trajectory_processor/joint_trajectory``;
-5. stop the processor with SIGINT (the bag is closed), then the planner;
-6. read both trajectories back from the bag (:func:`geodesic_planner.io.bags.read_trajectories`),
-   print a summary and write ``DIR/summary.json`` and ``DIR/trajectory.png``.
+5. stop the processor with SIGINT (the bag is closed);
+6. via poses with blends: ask ``/geodesic_planner/plan_trajectory`` (PlanTrajectory, plan only)
+   twice for a 5-pose sequence (start, 3 via poses, goal; :func:`via_sequence`), with
+   ``blend_radius`` 0 (rest at every via pose) and > 0 (:func:`via_blend_radius`: pass them
+   without stopping); then stop the planner;
+7. read both trajectories back from the bag (:func:`geodesic_planner.io.bags.read_trajectories`),
+   print a summary and write ``DIR/summary.json``, ``DIR/trajectory.png`` and
+   ``DIR/via_blend.png`` (tool path and tool speed of both via plans).
 
 A node that dies or a wait that times out prints the node's log tail and exits with 1.
 
@@ -27,6 +32,7 @@ and tested without ROS.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import shutil
@@ -44,9 +50,10 @@ from tools import netns
 from tools.process import NodeProcess, ToolError, popen_node, wait_until
 
 __all__ = ['DemoError', 'main', 'paper_poses', 'run_demo', 'segment_deviation',
-           'trajectory_summary']
+           'tool_speed', 'trajectory_summary', 'via_blend_radius', 'via_blend_summary', 'via_sequence']
 
 PLAN_SERVICE = '/geodesic_planner/plan'
+PLAN_TRAJECTORY_SERVICE = '/geodesic_planner/plan_trajectory'
 PLANNED_TOPIC = '/geodesic_planner/joint_trajectory'
 PROCESSED_TOPIC = '/trajectory_processor/joint_trajectory'
 VELOCITY_SCALING = 0.5
@@ -83,6 +90,69 @@ def demo_poses(robot: Chain) -> tuple[np.ndarray, np.ndarray]:
     q0 = np.asarray(robot.home, dtype=float)
     q1 = np.clip(q0 + 0.3, robot.lower, robot.upper)
     return robot.fk(q0), robot.fk(q1)
+
+
+def via_sequence(robot: Chain) -> list[np.ndarray]:
+    """Five tool poses (start, 3 via poses, goal), 4x4, base frame, m, for the via example.
+
+    planar_3r: the paper's start and goal with three via poses zig-zagging between them (wrist
+    points within 1.8 m of the base: reachable, and so is every straight segment between them).
+    Other robots: fk(home + 0.3 k/4 + 0.1 (-1)^k z) for k = 0..4, z = (1, -1, 1, ...) on the via
+    poses only (clipped to the joint limits): the demo's start and goal with a zig-zag between.
+    """
+    if robot.name == 'planar_3r':
+        start, goal = paper_poses()
+        return [start, _yaw_pose(2.0, 1.9, math.radians(40.0)), _yaw_pose(1.7, 1.5, math.radians(30.0)),
+                _yaw_pose(1.6, 2.2, math.radians(50.0)), goal]
+    q0 = np.asarray(robot.home, dtype=float)
+    zig = np.where(np.arange(robot.dof) % 2 == 0, 1.0, -1.0)
+    qs = [q0 + 0.3 * k / 4 + (0.1 * (-1) ** k * zig if 0 < k < 4 else 0.0) for k in range(5)]
+    return [robot.fk(np.clip(q, robot.lower, robot.upper)) for q in qs]
+
+
+def via_blend_radius(poses: Sequence[np.ndarray]) -> float:
+    """Blend radius (m) of the via example: 0.3 of the shortest tool segment, to the mm below
+    (so the balls around consecutive via poses stay apart)."""
+    p = np.array([T[:3, 3] for T in poses])
+    shortest = float(np.linalg.norm(np.diff(p, axis=0), axis=1).min())
+    return math.floor(300.0 * shortest) / 1000.0
+
+
+def tool_speed(robot: Chain, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """Speed of the tool origin (m/s), shape (N,), from joint positions and velocities (N, dof)
+    through the base-frame Jacobian's linear rows."""
+    return np.linalg.norm(np.einsum('nij,nj->ni', robot.jacobian(q)[:, :3], dq), axis=1)
+
+
+def via_blend_summary(t: np.ndarray, q: np.ndarray, dq: np.ndarray, robot: Chain,
+                      poses: Sequence[np.ndarray]) -> dict[str, Any]:
+    """Numbers describing one timed motion through via poses.
+
+    Args:
+        t: times, shape (N,), s.
+        q, dq: joint positions and velocities, shape (N, dof), robot joint order; rad (m), /s.
+        robot: the model (``fk``, ``jacobian``).
+        poses: start, via poses, goal, 4x4, base frame.
+
+    Returns:
+        points, duration (s), the tool's closest approach to each via pose (m), its largest
+        distance from the polyline start-via-goal (m), the tool speed at the point nearest each
+        via pose (m/s) and the peak tool speed (m/s).
+    """
+    tool = robot.fk(q)[:, :3, 3]
+    speed = tool_speed(robot, q, dq)
+    corners = np.array([T[:3, 3] for T in poses])
+    to_via = np.linalg.norm(tool[:, None] - corners[None, 1:-1], axis=2)
+    to_line = np.min([segment_deviation(tool, a, b) for a, b in itertools.pairwise(corners)], axis=0)
+    near = np.argmin(to_via, axis=0)
+    return {
+        'points': len(t),
+        'duration_s': float(t[-1] - t[0]) if len(t) > 1 else 0.0,
+        'closest_to_via_m': [float(d) for d in to_via.min(axis=0)],
+        'max_distance_from_polyline_m': float(to_line.max()),
+        'tool_speed_at_via_m_s': [float(v) for v in speed[near]],
+        'peak_tool_speed_m_s': float(speed.max()),
+    }
 
 
 def segment_deviation(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -165,7 +235,7 @@ def _prepare_output(out: Path) -> Path:
             raise DemoError(f'{bag} exists and is not a bag from an earlier run: remove it or '
                             'choose another --output')
         shutil.rmtree(bag) if bag.is_dir() else bag.unlink()
-    for old in ('summary.json', 'trajectory.png'):
+    for old in ('summary.json', 'trajectory.png', 'via_blend.png'):
         (out / old).unlink(missing_ok=True)
     return bag
 
@@ -185,6 +255,8 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
     bag_dir = _prepare_output(output)
     log_dir = output / 'logs'
 
+    from geodesic_planner_interfaces.msg import PlanErrorCode
+    from geodesic_planner_interfaces.srv import PlanTrajectory
     from nav_msgs.srv import GetPlan
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from trajectory_msgs.msg import JointTrajectory
@@ -214,6 +286,7 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
                     for topic in (PLANNED_TOPIC, PROCESSED_TOPIC)}
         status = StatusWatch(node)
         client = node.create_client(GetPlan, PLAN_SERVICE)
+        via_client = node.create_client(PlanTrajectory, PLAN_TRAJECTORY_SERVICE)
 
         t0 = time.monotonic()
         wait_for_service(client, timeout, watch=nodes)
@@ -254,6 +327,24 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
         rc = processor.stop()
         if rc != 0:
             raise DemoError(f'the processor exited with {rc} on SIGINT')
+
+        via_poses = via_sequence(robot)
+        radius = via_blend_radius(via_poses)
+        wait_for_service(via_client, timeout, watch=[planner])      # the processor has exited
+        via_plans: dict[float, Any] = {}
+        for r in (0.0, radius):
+            req = PlanTrajectory.Request(
+                start=matrix_to_pose_stamped(via_poses[0], ''), goal=matrix_to_pose_stamped(via_poses[-1], ''),
+                via_poses=[matrix_to_pose_stamped(T, '') for T in via_poses[1:-1]], blend_radius=r)
+            say(f'calling {PLAN_TRAJECTORY_SERVICE}: {len(via_poses) - 2} via poses, blend_radius {r:g} m')
+            future = via_client.call_async(req)
+            wait_until(future.done, timeout, what=f'the response of {PLAN_TRAJECTORY_SERVICE}',
+                       watch=[planner])
+            reply = future.result()
+            if reply is None or reply.error_code.val != PlanErrorCode.SUCCESS:
+                reason = 'no reply' if reply is None else f'{reply.error_code.val}: {reply.message}'
+                raise DemoError(f'the via plan with blend_radius {r:g} m failed ({reason})')
+            via_plans[r] = reply
         say('stopping the planner (SIGINT)...')
         rc = planner.stop()
         if rc != 0:
@@ -278,11 +369,42 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
         if runtime is not None:
             runtime.shutdown()
 
-    return _summarise(bag_dir, output, robot, start_T, goal_T, latency_ms, say)
+    via = _via_blend(output, robot, via_poses, radius,
+                     {r: joint_trajectory_to_arrays(reply.trajectory) for r, reply in via_plans.items()},
+                     list(via_plans[radius].blend_deviation))
+    return _summarise(bag_dir, output, robot, start_T, goal_T, latency_ms, via, say)
+
+
+def _via_blend(output: Path, robot: Any, poses: list[np.ndarray], radius: float,  # noqa: ANN401
+               arrays: dict[float, Any], deviation: list[float]) -> dict[str, Any]:
+    """The via example's part of summary.json, and ``DIR/via_blend.png``."""
+    from geodesic_planner.io.plotting import plot_via_blend
+
+    runs, parts = [], {}
+    for key, r, label in (('stopping', 0.0, 'blend_radius 0 (stops at each via pose)'),
+                          ('blended', radius, f'blend_radius {radius:g} m (no stop)')):
+        arr = arrays[r]
+        q = _reorder(arr.joint_names, robot.joint_names, arr.positions)
+        dq = _reorder(arr.joint_names, robot.joint_names, arr.velocities)
+        if q is None or dq is None:
+            raise DemoError(f'the via plan ({key}) has no velocities')
+        parts[key] = via_blend_summary(arr.t, q, dq, robot, poses)
+        runs.append((label, arr.t, robot.fk(q)[:, :3, 3], tool_speed(robot, q, dq)))
+    plot_via_blend(output / 'via_blend.png', runs, np.array([T[:3, 3] for T in poses]), radius,
+                   title=f'{robot.name}: via poses, stopping vs blended (PlanTrajectory blend_radius)')
+    parts['blended']['blend_deviation_m'] = deviation
+    return {
+        'service': PLAN_TRAJECTORY_SERVICE,
+        'poses': [T.tolist() for T in poses],
+        'blend_radius_m': radius,
+        **parts,
+        'time_saved_s': parts['stopping']['duration_s'] - parts['blended']['duration_s'],
+    }
 
 
 def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # noqa: ANN401
-               goal_T: np.ndarray, latency_ms: float, say: Callable[[str], None]) -> dict[str, Any]:
+               goal_T: np.ndarray, latency_ms: float, via: dict[str, Any],
+               say: Callable[[str], None]) -> dict[str, Any]:
     from geodesic_planner.io.bags import read_trajectories
     from geodesic_planner.io.plotting import plot_trajectories
 
@@ -317,6 +439,7 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
         'service_latency_ms': latency_ms,
         'bag': str(bag_dir),
         **parts,
+        'via_blend': via,
     }
     (output / 'summary.json').write_text(json.dumps(summary, indent=1) + '\n')
     plot_trajectories(output / 'trajectory.png', columns,
@@ -332,7 +455,13 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
     say(f'  duration ratio processed/planned: {r["duration_s"] / p["duration_s"]:.4f} '
         f'(1/velocity_scaling = {1 / VELOCITY_SCALING:g})')
     say(f'  goal reached within {max(p["goal_position_error_m"], r["goal_position_error_m"]):.2e} m')
-    say(f'wrote {output / "summary.json"}, {output / "trajectory.png"}, bag {bag_dir}')
+    stop, blend = via['stopping'], via['blended']
+    say(f'  via poses ({len(via["poses"]) - 2}, PlanTrajectory): stopping {stop["duration_s"]:.3f} s, '
+        f'blended (blend_radius {via["blend_radius_m"]:g} m) {blend["duration_s"]:.3f} s, time saved '
+        f'{via["time_saved_s"]:.3f} s; corner cut per via pose '
+        + ', '.join(f'{d:.3g}' for d in blend['blend_deviation_m']) + ' m')
+    say(f'wrote {output / "summary.json"}, {output / "trajectory.png"}, {output / "via_blend.png"}, '
+        f'bag {bag_dir}')
     return summary
 
 

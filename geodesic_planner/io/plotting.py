@@ -386,4 +386,54 @@ def plot_trajectories(path: str | os.PathLike[str], columns: Sequence[tuple[str,
     return os.fspath(path)
 
 
-__all__ = ['DPI', 'JointSeries', 'is_planar', 'plot_comparison', 'plot_timed_comparison', 'plot_trajectories']
+def plot_via_blend(path: str | os.PathLike[str],
+                   runs: Sequence[tuple[str, np.ndarray, np.ndarray, np.ndarray]],
+                   via_positions: np.ndarray, blend_radius: float, *, title: str = '') -> str:
+    """One PNG of motions through via poses: the tool path in the xy plane with the via poses and
+    circles of radius ``blend_radius`` around them (left), the tool speed vs time (right).
+
+    Args:
+        path: PNG file to write.
+        runs: (label, t (N,) in s, tool positions (N, 3) in m (base frame), tool speed (N,) in m/s)
+            per motion, e.g. stopping at the via poses and blended.
+        via_positions: the poses the motion passes, start and goal included, (K, 3), m.
+        blend_radius: m (0: no circles).
+        title: figure title.
+
+    Returns:
+        ``path`` as a string.
+    """
+    from matplotlib.patches import Circle
+
+    fig = _figure((11.0, 4.2))
+    ax_xy, ax_v = fig.subplots(1, 2, gridspec_kw={'width_ratios': [1.0, 1.3]})
+    via = np.asarray(via_positions, dtype=float)
+    for k, (label, t, tool, speed) in enumerate(runs):
+        ax_xy.plot(tool[:, 0], tool[:, 1], color=f'C{k}', label=label, **_style('geodesic'))
+        ax_v.plot(t, speed, color=f'C{k}', label=label, **_style('geodesic'))
+    ax_xy.plot(via[:, 0], via[:, 1], ls=':', lw=0.8, color='gray', label='polyline start-via-goal')
+    ax_xy.plot(via[1:-1, 0], via[1:-1, 1], 'kx', ms=7, label='via poses')
+    ax_xy.plot(via[[0, -1], 0], via[[0, -1], 1], 'ko', ms=5, mfc='none', label='start, goal')
+    if blend_radius > 0.0:
+        for k, (x, y) in enumerate(via[1:-1, :2]):
+            ax_xy.add_patch(Circle((x, y), blend_radius, fill=False, ls='--', lw=0.8, color='C3',
+                                   label=f'blend radius {blend_radius:g} m' if k == 0 else None))
+    ax_xy.set_aspect('equal', adjustable='datalim')
+    ax_xy.set_xlabel(r'tool $x$ (m)')
+    ax_xy.set_ylabel(r'tool $y$ (m)')
+    ax_xy.set_title('tool path (xy plane, base frame)', fontsize=9)
+    ax_v.set_xlabel(T_LABEL)
+    ax_v.set_ylabel(r'tool speed $|v|$ (m/s)')
+    ax_v.set_title('tool speed', fontsize=9)
+    ax_xy.grid(True, alpha=0.3)
+    ax_v.grid(True, alpha=0.3)
+    handles, labels = ax_xy.get_legend_handles_labels()     # one legend for both, to the right
+    ax_v.legend(handles, labels, loc='upper left', bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+                fontsize=7)
+    _suptitle(fig, title)
+    fig.savefig(os.fspath(path), dpi=DPI, bbox_inches='tight', pad_inches=0.05)
+    return os.fspath(path)
+
+
+__all__ = ['DPI', 'JointSeries', 'is_planar', 'plot_comparison', 'plot_timed_comparison', 'plot_trajectories',
+           'plot_via_blend']

@@ -3,9 +3,10 @@
 Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default):
 
 * service ``~/plan_trajectory`` (geodesic_planner_interfaces/srv/PlanTrajectory): start (pose,
-  joints, or unset = the current joint state), goal (pose or joints), via poses, scaling factors
-  and ``execute``; the reply carries the PlanErrorCode (:data:`~.planning.ERROR_CODES` maps each
-  library error class to one), the reason, the trajectory, the tool path and the solver's figures.
+  joints, or unset = the current joint state), goal (pose or joints), via poses, ``blend_radius``
+  (m; > 0: pass the via poses without stopping), scaling factors and ``execute``; the reply
+  carries the PlanErrorCode (:data:`~.planning.ERROR_CODES` maps each library error class to
+  one), the reason, the trajectory, the tool path, the solver's figures and the blend deviations.
   Plan-only unless ``execute`` is true. With a joint state known, an explicit start is solved
   seeded from it and refused (START_STATE_MISMATCH) beyond ``allowed_start_tolerance``.
 * service ``~/plan`` (nav_msgs/srv/GetPlan, compatibility; every success is published, no
@@ -430,6 +431,7 @@ class GeodesicPlannerNode(Node):
             response.tool_path = result.path
             response.solver_method = result.solver_method
             response.path_error = result.path_error
+            response.blend_deviation = list(result.blend_deviation)
         return response
 
     def _serve(self, parse: Callable[[PlannerConfig], tuple[PlanRequest, float | None, float | None]],
@@ -470,11 +472,13 @@ class GeodesicPlannerNode(Node):
                                     f'{total_ms:.1f} ms): {outcome.message}')
             return outcome
         self.marker_pub.publish(result.markers)
+        blends = (f', blend deviation up to {max(result.blend_deviation):.2g} m'
+                  if result.blend_deviation else '')
         self.get_logger().info(
             f'plan: {result.points} points, {result.duration:.2f} s, '
             f'{"published" if outcome.published else "not published (execute: false)"}, solver '
             f'{result.solver_method} ({result.solver_iterations} it, {result.mesh_size} nodes), '
-            f'{result.solver_ms:.1f} ms, path error {result.path_error:.2g} m (request '
+            f'{result.solver_ms:.1f} ms, path error {result.path_error:.2g} m{blends} (request '
             f'{total_ms:.1f} ms: ' + ', '.join(f'{k} {v:.1f}' for k, v in result.stage_ms.items()) + ')')
         return outcome
 

@@ -35,6 +35,7 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from .. import GeodesicPlanner, load_robot
+from ..core.blend import BlendedPath
 from ..core.errors import (BVPError, FrameError, GeodesicPlannerError, IKError, KinematicsError,
                            LimitError, RequestError, SingularMetricError, StartStateError,
                            TrajectoryError)
@@ -160,8 +161,11 @@ class PlanResult:
     #: SolverReport.method ('pullback' or 'collocation') and mesh size
     solver_method: str = ''
     mesh_size: int = 0
-    #: largest distance of the tool from the straight segment(s), m
+    #: largest distance of the tool from the straight segment(s), m (outside any blend zone)
     path_error: float = math.nan
+    #: per via pose when the request asked for blends (blend_radius > 0), else empty: the largest
+    #: distance (m) of the tool from the stopping path inside its blend zone (0: passed with a stop)
+    blend_deviation: tuple[float, ...] = ()
 
 
 def _limits(name: str, value: Sequence[float] | np.ndarray | None, default: np.ndarray, dof: int) -> np.ndarray:
@@ -336,6 +340,15 @@ def _factor(value: float, what: str) -> float | None:
     return f if f > 0.0 else None
 
 
+def _blend_radius(value: float) -> float:
+    """A request's blend radius in m (0: rest at every via pose)."""
+    r = float(value)
+    if not (math.isfinite(r) and r >= 0.0):
+        raise RequestError(f'blend_radius: must be finite and >= 0 m (0: stop at every via pose), '
+                           f'got {r!r}')
+    return r
+
+
 def get_plan_request(config: PlannerConfig, msg: GetPlan.Request) -> PlanRequest:
     """The library request of a nav_msgs/GetPlan request (start = current state when unset).
 
@@ -356,9 +369,11 @@ def plan_trajectory_request(config: PlannerConfig, msg: PlanTrajectory.Request
 
     Raises:
         RequestError: a pose or joint state that is malformed, both a pose and joints for one end,
-            no goal, too many via poses, a factor outside [0, 1]; FrameError: not the base frame.
+            no goal, too many via poses, a factor outside [0, 1], a negative, NaN or infinite
+            blend_radius; FrameError: not the base frame.
     """
     names = config.joint_names
+    blend_radius = _blend_radius(msg.blend_radius)     # checked even without via poses
 
     def end(pose: PoseStamped, joints: JointState, what: str) -> tuple[np.ndarray | None, np.ndarray | None]:
         given_pose = not cv.is_empty_pose(pose)
@@ -380,7 +395,8 @@ def plan_trajectory_request(config: PlannerConfig, msg: PlanTrajectory.Request
            for i, v in enumerate(msg.via_poses)]
     if via and goal is None:
         raise RequestError('via_poses: a via sequence must end at a goal pose, not goal_joints')
-    request = PlanRequest(config.robot, start, goal, start_joints, goal_joints, via)
+    request = PlanRequest(config.robot, start, goal, start_joints, goal_joints, via,
+                          blend_radius=blend_radius)
     return (request, _factor(msg.velocity_scaling_factor, 'velocity_scaling_factor'),
             _factor(msg.acceleration_scaling_factor, 'acceleration_scaling_factor'))
 
@@ -484,6 +500,7 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
     path_msg = cv.poses_to_path(poses, config.frame_id, stamp)
     markers = cv.path_markers(poses, config.frame_id)
     path_error = path.line_deviation()
+    deviation = blend_deviation(request, path)
     t5 = time.perf_counter()
     solver = path.solver
     stages = {'plan': (t1 - t0) * 1e3, 'timing': (t2 - t1) * 1e3,
@@ -491,4 +508,17 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
               'tool path': (t5 - t4) * 1e3}
     return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
                       int(solver.iterations), float(solver.time_ms), stages,
-                      solver.method, int(solver.mesh_size), path_error)
+                      solver.method, int(solver.mesh_size), path_error, deviation)
+
+
+def blend_deviation(request: PlanRequest, path: object) -> tuple[float, ...]:
+    """Per via pose of ``request`` (in order): the blend zone's largest tool distance from the
+    stopping path (m, ``BlendZone.deviation``), 0 where the motion stops; empty when the request
+    asks for no blends (``blend_radius`` 0 or no via poses)."""
+    if not request.via or request.blend_radius <= 0.0:
+        return ()
+    deviation = [0.0] * len(request.via)
+    if isinstance(path, BlendedPath):
+        for zone in path.zones:        # zone.via: index among [start, *via, goal]
+            deviation[zone.via - 1] = float(zone.deviation)
+    return tuple(deviation)

@@ -58,6 +58,47 @@ def test_demo_trajectory_summary_on_known_motion() -> None:
     assert abs(s['max_tool_path_deviation_m'] - 3 * (1 - math.cos(0.2))) < 1e-12
 
 
+def test_demo_via_sequence_and_radius() -> None:
+    from geodesic_planner import load_robot
+    from tools.demo import demo_poses, paper_poses, via_blend_radius, via_sequence
+
+    robot = load_robot('planar_3r')
+    poses = via_sequence(robot)
+    assert len(poses) == 5
+    np.testing.assert_array_equal(poses[0], paper_poses()[0])
+    np.testing.assert_array_equal(poses[-1], paper_poses()[1])
+    wrist = [np.linalg.norm(T[:2, 3] - T[:2, 0]) for T in poses]   # tool minus the last (unit) link
+    assert max(wrist[1:-1]) < 1.8 and max(wrist) < 2.0               # reachable: within 2 m
+    # 0.3 of the shortest segment (via 3 -> goal: sqrt(0.1^2 + 0.3^2) m), to the mm below
+    assert via_blend_radius(poses) == 0.094 == math.floor(300 * math.hypot(0.1, 0.3)) / 1000
+    other = load_robot('rrpp')
+    seq = via_sequence(other)
+    start, goal = demo_poses(other)
+    np.testing.assert_allclose(seq[0], start, atol=1e-12)
+    np.testing.assert_allclose(seq[-1], goal, atol=1e-12)
+
+
+def test_demo_via_blend_summary_on_known_motion() -> None:
+    from geodesic_planner import load_robot
+    from tools.demo import via_blend_summary
+
+    robot = load_robot('planar_3r')
+    t = np.linspace(0.0, 1.0, 5)
+    q = np.zeros((5, 3))
+    q[:, 0] = np.linspace(0.0, 0.4, 5)                 # joint 1 only: radius 3 arc
+    dq = np.zeros((5, 3))
+    dq[:, 0] = [0.0, 0.4, 0.4, 0.4, 0.0]
+    T = robot.fk(q)
+    poses = [T[0], T[2], T[4]]                          # the middle sample is the via pose
+    s = via_blend_summary(t, q, dq, robot, poses)
+    assert s['points'] == 5 and s['duration_s'] == 1.0
+    assert s['closest_to_via_m'] == [0.0]
+    assert s['tool_speed_at_via_m_s'] == pytest.approx([1.2], abs=1e-12)      # 3 m x 0.4 rad/s
+    assert s['peak_tool_speed_m_s'] == pytest.approx(1.2, abs=1e-12)
+    # samples 1 and 3 sit at the middle of their 0.2 rad chords: sagitta 3 (1 - cos 0.1)
+    assert s['max_distance_from_polyline_m'] == pytest.approx(3 * (1 - math.cos(0.1)), abs=1e-12)
+
+
 @pytest.mark.ros
 def test_demo_end_to_end(tmp_path: Path) -> None:
     """The main job as the README runs it (inside the namespace): both nodes, bag, summary, plot."""
@@ -90,6 +131,23 @@ def test_demo_end_to_end(tmp_path: Path) -> None:
         assert part['goal_position_error_m'] < 1e-9
         assert all(0 < v <= 1.0 + 1e-9 for v in part['peak_joint_speed'])  # planar_3r limit 1 rad/s
     assert (out / 'trajectory.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    # The via example (PlanTrajectory, plan only): stopping vs blended.
+    assert (out / 'via_blend.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    via = summary['via_blend']
+    r = via['blend_radius_m']
+    stop, blend = via['stopping'], via['blended']
+    assert len(via['poses']) == 5 and r == 0.094
+    assert re.search(r'via poses \(3, PlanTrajectory\): stopping [\d.]+ s, blended', result.stdout)
+    assert all(d < 1e-6 for d in stop['closest_to_via_m'])          # it passes each via pose
+    assert all(v < 1e-3 * stop['peak_tool_speed_m_s'] for v in stop['tool_speed_at_via_m_s'])  # at rest
+    assert stop['max_distance_from_polyline_m'] < 1e-6
+    assert len(blend['blend_deviation_m']) == 3
+    assert all(0.0 < d <= r for d in blend['blend_deviation_m'])
+    assert all(d <= r for d in blend['closest_to_via_m'])
+    assert blend['max_distance_from_polyline_m'] <= max(blend['blend_deviation_m']) + 1e-9
+    assert all(v > 0.05 * blend['peak_tool_speed_m_s'] for v in blend['tool_speed_at_via_m_s'])  # no stop
+    assert via['time_saved_s'] == pytest.approx(stop['duration_s'] - blend['duration_s'], abs=1e-12)
+    assert blend['duration_s'] <= stop['duration_s']           # not stopping saves time
     assert (out / 'bag' / 'metadata.yaml').is_file()
     from geodesic_planner.io.bags import read_trajectories
     topics = sorted({r.topic for r in read_trajectories(out / 'bag')})

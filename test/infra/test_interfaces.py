@@ -45,9 +45,10 @@ def test_built_package_imports_with_no_ros_environment() -> None:
     out = json.loads(result.stdout.strip().splitlines()[-1])
     assert out['codes'] == CODES
     assert out['request'] == sorted(['start', 'goal', 'start_joints', 'goal_joints', 'via_poses',
-                                     'velocity_scaling_factor', 'acceleration_scaling_factor', 'execute'])
+                                     'velocity_scaling_factor', 'acceleration_scaling_factor', 'execute',
+                                     'blend_radius'])
     assert out['response'] == sorted(['error_code', 'message', 'trajectory', 'tool_path', 'solver_method',
-                                      'path_error', 'planning_time'])
+                                      'path_error', 'planning_time', 'blend_deviation'])
     assert out['execute'] is False and out['code'] == 0
 
 

@@ -1,9 +1,10 @@
 """The PlanTrajectory service through the real planner node: error codes, execute, start state.
 
 Oracles: closed-form IK and FK of the planar 3R arm (both elbow branches), the straight line
-with linear phi, the robot's and a joint_limits.yaml's limits, forward kinematics of the URDF
-model. Waits are on replies and messages, with deadlines; "nothing was published" is proven by a
-later message that must arrive first (one publisher, reliable, in order).
+with linear phi, the polyline through the via poses (blends: the balls of blend_radius around
+them), the robot's and a joint_limits.yaml's limits, forward kinematics of the URDF model.
+Waits are on replies and messages, with deadlines; "nothing was published" is proven by a later
+message that must arrive first (one publisher, reliable, in order).
 """
 from __future__ import annotations
 
@@ -44,6 +45,11 @@ pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
 DEADLINE = 60.0
 OK = PlanErrorCode.SUCCESS
 KR6_URDF = FsPath(geodesic_planner.__file__).parent / 'data' / 'kr6_like.urdf'
+#: three via poses (x, y, phi) between START_3R and GOAL_3R, wrist points within 1.8 m of the base
+VIAS_3R = ((2.0, 1.9, math.radians(40.0)), (1.7, 1.5, math.radians(30.0)),
+           (1.6, 2.2, math.radians(50.0)))
+#: blend radius, m: under half the shortest segment (0.32 m), so the balls around the vias are apart
+BLEND_R = 0.09
 
 
 def ik_3r_down(x: float, y: float, phi: float) -> np.ndarray:
@@ -242,6 +248,14 @@ CASES: list[tuple[str, Callable[[], PlanTrajectory.Request], int, str]] = [
     ('start pose', _far_start_pose, PlanErrorCode.START_STATE_MISMATCH, 'allowed_start_tolerance'),
     ('joint limits', lambda: plan_request(goal_joints=[4.0, 0.0, 0.0]),
      PlanErrorCode.JOINT_LIMITS_VIOLATED, 'outside its limits'),
+    ('blend negative', lambda: plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R),
+                                            via_poses=[pose_3r(*VIAS_3R[0])], blend_radius=-0.01),
+     PlanErrorCode.INVALID_REQUEST, 'blend_radius'),
+    ('blend nan', lambda: plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R),
+                                       via_poses=[pose_3r(*VIAS_3R[0])], blend_radius=math.nan),
+     PlanErrorCode.INVALID_REQUEST, 'blend_radius'),
+    ('blend inf', lambda: plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R), blend_radius=math.inf),
+     PlanErrorCode.INVALID_REQUEST, 'blend_radius'),
     ('too long', lambda: plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R),
                                       velocity_scaling_factor=1e-4, acceleration_scaling_factor=1e-8),
      PlanErrorCode.PLANNING_FAILED, 'more than 100000'),
@@ -338,6 +352,84 @@ def test_via_poses(planar: Planner) -> None:
         rel = part[:, :2] - a[:2]
         assert np.max(np.abs(rel[:, 0] * d[1] - rel[:, 1] * d[0])) / np.linalg.norm(d) < 1e-6
     assert resp.path_error < 1e-6
+
+
+def _via_request(blend_radius: float) -> PlanTrajectory.Request:
+    return plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R),
+                        via_poses=[pose_3r(*v) for v in VIAS_3R], blend_radius=blend_radius)
+
+
+def _polyline_distance(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """(N, len(corners) - 1) distances of 2-D points to each segment of the polyline ``corners``."""
+    a, b = corners[:-1], corners[1:]
+    ab = b - a
+    u = np.clip(np.einsum('nkd,kd->nk', points[:, None] - a, ab) / np.einsum('kd,kd->k', ab, ab), 0, 1)
+    return np.linalg.norm(points[:, None] - (a + u[..., None] * ab), axis=2)
+
+
+def _speeds_at_vias(arr: cv.TrajectoryArrays) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """Joint speed norm at every point, tool (x, y, phi) by the closed-form FK, and the index of
+    the point nearest to each via pose."""
+    xyphi = fk_3r(arr.positions)
+    near = [int(np.argmin(np.linalg.norm(xyphi[:, :2] - v[:2], axis=1))) for v in VIAS_3R]
+    return np.linalg.norm(arr.velocities, axis=1), xyphi, near
+
+
+def test_blend_radius_passes_via_poses_without_stopping(planar: Planner) -> None:
+    resp = planar.plan(_via_request(BLEND_R))
+    assert resp.error_code.val == OK, resp.message
+    arr = check_controller_contract(resp.trajectory, ROBOT_3R.joint_names)
+    check_limits(arr, ROBOT_3R.max_velocity, ROBOT_3R.max_acceleration)
+    speed, xyphi, near = _speeds_at_vias(arr)
+    # no stop: moving at every interior point, and between the first and the last via pose never
+    # slower than a few percent of the peak (the stopping plan below comes to rest there)
+    assert np.all(speed[1:-1] > 0.0), np.flatnonzero(speed[1:-1] == 0.0)
+    assert near[0] < near[1] < near[2]
+    assert speed[near[0]:near[2] + 1].min() > 0.02 * speed.max()
+    # the tool: within BLEND_R of each via pose, and of the polyline start-vias-goal everywhere
+    corners = np.array([START_3R[:2], *[v[:2] for v in VIAS_3R], GOAL_3R[:2]])
+    xy = xyphi[:, :2]
+    to_via = np.linalg.norm(xy[:, None] - corners[None, 1:-1], axis=2)      # (N, 3)
+    assert np.all(to_via.min(axis=0) <= BLEND_R), to_via.min(axis=0)
+    to_line = _polyline_distance(xy, corners)
+    assert to_line.min(axis=1).max() <= BLEND_R
+    # outside the balls of radius BLEND_R around the vias the path is the exact line (the
+    # tool on its segment); the reply's path_error says the same
+    outside = to_via.min(axis=1) > BLEND_R
+    assert outside.sum() > len(xy) // 2
+    assert to_line[outside].min(axis=1).max() < 1e-6
+    assert resp.path_error < 1e-6
+    # blend_deviation: one value per via pose, within the radius, and what the samples inside
+    # each ball show (distance from the two segments that meet at the via pose; sampled, so a
+    # little below the zone's dense maximum)
+    dev = np.array(resp.blend_deviation)
+    assert dev.shape == (3,)
+    assert np.all((dev > 0.0) & (dev <= BLEND_R)), dev
+    for k in range(3):
+        ball = to_via[:, k] <= BLEND_R
+        seen = to_line[ball][:, k:k + 2].min(axis=1).max()
+        assert 0.8 * dev[k] <= seen <= dev[k] + 1e-9, (k, seen, dev[k])
+
+
+def test_blend_radius_zero_rests_at_every_via_pose(planar: Planner) -> None:
+    resp = planar.plan(_via_request(0.0))
+    assert resp.error_code.val == OK, resp.message
+    arr = check_controller_contract(resp.trajectory, ROBOT_3R.joint_names)
+    speed, xyphi, near = _speeds_at_vias(arr)
+    assert len(resp.blend_deviation) == 0
+    # the samples are 10 ms apart, so none falls exactly on the stop: the nearest one passes the
+    # via pose within 1 um at a speed of at most 0.1 % of the peak
+    for k, v in zip(near, VIAS_3R):
+        assert_allclose(xyphi[k], v, atol=1e-6)
+        assert speed[k] < 1e-3 * speed.max(), (k, speed[k], speed.max())
+
+
+def test_blend_radius_without_via_poses_is_ignored(planar: Planner) -> None:
+    plain = planar.plan(plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R)))
+    blended = planar.plan(plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R), blend_radius=0.05))
+    assert plain.error_code.val == blended.error_code.val == OK, blended.message
+    assert blended.trajectory == plain.trajectory
+    assert len(blended.blend_deviation) == 0
 
 
 # =========================================================================== model and limits
