@@ -41,6 +41,8 @@ CHECK_SAMPLES = 201
 SHRINK = 0.7
 #: Most shrink steps before a via point is passed without a blend (a stop).
 MAX_SHRINKS = 40
+#: Sub-intervals of each zone given to the time laws as breakpoints (sampling resolution).
+ZONE_NODES = 4
 #: Bisection steps for the cut point at distance r on the exact line.
 BISECTION_STEPS = 60
 
@@ -119,7 +121,7 @@ class BlendedPath(JointPath):
     Attributes:
         stopping_path: the piecewise geodesic the blends were cut from (rests at via points).
         zones: BlendZone per blended via point, in order.
-        breakpoints: s of every zone's ends, with 0 and 1.
+        breakpoints: s of every zone's ends (and ZONE_NODES - 1 points inside each), with 0 and 1.
         length: metric length of the blended path (shorter than the stopping path's).
         solver: the stopping path's aggregate SolverReport.
     """
@@ -204,7 +206,11 @@ class BlendedPath(JointPath):
         edges = np.concatenate([[0.0], np.cumsum([g.length for g in segs])]) / total
         edges[-1] = 1.0
         self._edges = edges
-        self.breakpoints = edges.copy()
+        # Breakpoints: every zone's ends, and ZONE_NODES - 1 points inside each zone, so that
+        # the time laws sample a short zone as finely as a whole piece (timing.sampling).
+        inner = [edges[j] + (edges[j + 1] - edges[j]) * np.arange(1, ZONE_NODES) / ZONE_NODES
+                 for j, g in enumerate(segs) if g.kind == 'blend']
+        self.breakpoints = np.union1d(edges, np.concatenate(inner)) if inner else edges.copy()
 
     def _report(self, k: int, radius: float) -> BlendZone:
         """Measure the tool inside the zone of via point k on a dense grid."""
