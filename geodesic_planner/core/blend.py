@@ -5,7 +5,7 @@ there, so a timed motion must rest. A blend replaces the corner by a smooth pass
 
 * The zone of via point k is the last metric length ℓ_k of the incoming geodesic and the first
   ℓ_k of the outgoing one. ℓ_k is the largest length for which both cut points are within the
-  blend radius r of the via point's tool position (found by bisection on the exact line), at most
+  blend radius r of the via point's tool position (bracketed on the exact line), at most
   half of either neighbouring piece (zones never overlap).
 * Inside the zone both motions run at their natural rates over the same interval,
   τ = (σ − σ_a)/ℓ_k ∈ [0, 1] of metric arc length σ, and are mixed in joint space:
@@ -43,8 +43,10 @@ SHRINK = 0.7
 MAX_SHRINKS = 40
 #: Sub-intervals of each zone given to the time laws as breakpoints (sampling resolution).
 ZONE_NODES = 4
-#: Bisection steps for the cut point at distance r on the exact line.
-BISECTION_STEPS = 60
+#: The cut point at distance r on the exact line: CUT_ROUNDS brackets of CUT_POINTS values of u
+#: (resolution (CUT_POINTS - 1) ** -CUT_ROUNDS of the piece, about 1e-9).
+CUT_POINTS = 33
+CUT_ROUNDS = 6
 
 
 @dataclass(frozen=True)
@@ -167,20 +169,21 @@ class BlendedPath(JointPath):
         """Metric length from the via point to the point of piece i at tool distance ``radius``.
 
         ``at_end``: the via point is piece i's end (u = 1), else its start (u = 0). The tool moves
-        monotonically along the exact segment, so a bisection on u finds the crossing; the result
-        is on the inner side (distance <= radius).
+        monotonically along the exact segment, so the crossing is bracketed on CUT_POINTS values
+        of u, CUT_ROUNDS times; the result is on the inner side (distance <= radius).
         """
         via_u = 1.0 if at_end else 0.0
         target = self._ends[i + 1 if at_end else i][:3, 3]
         outside, inside = 1.0 - via_u, via_u
         if self._tool_distance(i, np.array([outside]), target)[0] <= radius:
             return float(self._lengths[i])
-        for _ in range(BISECTION_STEPS):
-            m = 0.5 * (outside + inside)
-            if self._tool_distance(i, np.array([m]), target)[0] > radius:
-                outside = m
-            else:
-                inside = m
+        for _ in range(CUT_ROUNDS):
+            u = np.linspace(outside, inside, CUT_POINTS)
+            within = self._tool_distance(i, u, target) <= radius
+            k = int(np.argmax(within))         # first value of u (from outside) within r
+            if k == 0:                         # round-off: the bracket's outer end is within r
+                break
+            outside, inside = float(u[k - 1]), float(u[k])
         return float(abs(via_u - inside) * self._lengths[i])
 
     def _zone_length(self, k: int, radius: float) -> float:
