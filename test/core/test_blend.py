@@ -587,4 +587,3 @@ def test_random_via_sequences(name: str) -> None:
         check_timed(path, path.timed())
 
     run()
-
