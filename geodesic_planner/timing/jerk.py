@@ -22,6 +22,9 @@ q(s) never changes, only s(t).
    duration ``lambda(c) * sum(T* + c w_ref)``. If the best law still needs a stretch above
    LOCAL_TRIGGER, the optimal profile is capped near the samples over a limit and filtered again
    with the same window (:func:`.smoothing.local_cap`), keeping the shortest law. When the jerk
+   binds, the search is also run on the optimal profile under the cruise cap of the jerk rows
+   (:func:`cruise_cap`, ``x <= (jmax / |q'''|)^(2/3)``: what a blend's third derivative allows),
+   keeping the shorter law. When the jerk
    binds (the result is more than LOOSE times the v/a-optimal duration), the optimal pass is
    repeated with the acceleration limits scaled by ACCEL_SCALES, keeping the shortest law: gentler
    accelerations allow gentler ramps (on a line where amax is not reached the 7-segment optimum
@@ -384,25 +387,38 @@ class JerkLimited:
         fine = ps.refined(int(self.refine))
         x_max = None if tool is None else tool.speed_cap(int(self.refine), TOPP_MARGIN)
         checker = _Checker(path, ps, limits, tool, self.check_samples)
-        t_star = 0.0
-        best: tuple[BoxLaw, float] | None = None
-        best_x, best_beta = np.zeros(0), 1.0
-        for beta in (1.0,) + ACCEL_SCALES:
-            x = topp(fine, vmax * (1.0 - TOPP_MARGIN), beta * amax * (1.0 - TOPP_MARGIN), x_max)
-            pieces = star_pieces(fine.s, x)
-            cand = _best_width(pieces, _reference_width(fine, x, pieces, jmax), checker)
-            if best is None:
-                t_star = sum(p.t_star for _, p in pieces)
-                if cand[1] * cand[0].duration <= LOOSE * t_star:
-                    best, best_x, best_beta = cand, x, beta
+        x0 = topp(fine, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN), x_max)
+        t_star = sum(p.t_star for _, p in star_pieces(fine.s, x0))     # the v/a optimum
+
+        def search(cap: np.ndarray | None) -> tuple[tuple[BoxLaw, float], np.ndarray, float]:
+            """The shortest law over the acceleration scales, for the optimal pass under ``cap``."""
+            found: tuple[tuple[BoxLaw, float], np.ndarray, float] | None = None
+            for beta in (1.0,) + ACCEL_SCALES:
+                x = x0 if beta == 1.0 and cap is x_max else topp(
+                    fine, vmax * (1.0 - TOPP_MARGIN), beta * amax * (1.0 - TOPP_MARGIN), cap)
+                pieces = star_pieces(fine.s, x)
+                cand = _best_width(pieces, _reference_width(fine, x, pieces, jmax), checker)
+                total = cand[1] * cand[0].duration
+                if found is not None and total >= found[0][1] * found[0][0].duration:
                     break
-            elif cand[1] * cand[0].duration >= best[1] * best[0].duration:
-                break
-            best, best_x, best_beta = cand, x, beta
-        assert best is not None
+                found = (cand, x, beta)
+                if beta == 1.0 and total <= LOOSE * t_star:
+                    break
+            assert found is not None
+            return found
+
+        best, best_x, best_beta = search(x_max)
+        cap = x_max
+        if best[1] * best[0].duration > LOOSE * t_star:
+            # The jerk binds: also try the optimal pass under the cruise cap of the jerk rows.
+            cruise = cruise_cap(ps, fine.s, jmax)
+            cruise = cruise if x_max is None else np.minimum(x_max, cruise)
+            other = search(cruise)
+            if other[0][1] * other[0][0].duration < best[1] * best[0].duration:
+                (best, best_x, best_beta), cap = other, cruise
         law, lam = best
         if lam > LOCAL_TRIGGER:     # a local dip the filter cannot follow: slow down near it
-            law, lam = _local_passes(fine, best_x, best_beta, best, checker, x_max, jmax)
+            law, lam = _local_passes(fine, best_x, best_beta, best, checker, cap, jmax)
         t_min = lam * law.duration
         if duration is None:
             T = t_min
@@ -417,13 +433,25 @@ class JerkLimited:
                           scaling=law, time_scale=scale)
 
 
+def cruise_cap(ps: PathSamples, s_fine: np.ndarray, jmax: np.ndarray) -> np.ndarray:
+    """Cap on x = sdot^2 at ``s_fine`` from the jerk rows at cruise (sdot constant, the jerk is
+    q''' sdot^3): x <= (jmax / |q'''|)^(2/3), the lower of each coarse step's two ends, 1/s^2."""
+    c3 = (np.maximum(np.abs(ps.cL), np.abs(ps.cR)) / jmax).max(axis=1)
+    with np.errstate(divide='ignore'):
+        cruise = np.where(c3 > 0, c3, 0.0) ** (-2.0 / 3.0)
+    step = np.minimum(cruise[:-1], cruise[1:])
+    k = np.clip(np.searchsorted(ps.s, s_fine, side='right') - 1, 0, step.size - 1)
+    return step[k]
+
+
 def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[BoxLaw, float],
                   checker: _Checker, x_max: np.ndarray | None, jmax: np.ndarray
                   ) -> tuple[BoxLaw, float]:
     """Cap the optimal profile near the samples over a limit and filter again (as in
     :mod:`.smoothing`, step 3), keeping the shortest checked law; (law, its stretch)."""
     lim = checker.limits
-    law, lam, cap = best[0], best[1], x_max
+    law, lam = best
+    cap = x_max
     for _ in range(LOCAL_PASSES):
         t, need = checker.need(law)
         cap = local_cap(fine.s, x, law, t, need, float(law.width.max()), cap)
