@@ -22,9 +22,9 @@ q(s) never changes, only s(t).
    duration ``lambda(c) * sum(T* + c w_ref)``. If the best law still needs a stretch above
    LOCAL_TRIGGER, the optimal profile is capped near the samples over a limit and filtered again
    with the same window (:func:`.smoothing.local_cap`), keeping the shortest law. When the jerk
-   binds, the search is also run on the optimal profile under the cruise cap of the jerk rows
-   (:func:`cruise_cap`, ``x <= (jmax / |q'''|)^(2/3)``: what a blend's third derivative allows),
-   keeping the shorter law. When the jerk
+   binds and the optimal profile runs far above the cruise cap of the jerk rows (:func:`cruise_cap`,
+   ``x <= (jmax / |q'''|)^(2/3)``: what a blend's third derivative allows), the search is also run
+   under that cap, keeping the shorter law. When the jerk
    binds (the result is more than LOOSE times the v/a-optimal duration), the optimal pass is
    repeated with the acceleration limits scaled by ACCEL_SCALES, keeping the shortest law: gentler
    accelerations allow gentler ramps (on a line where amax is not reached the 7-segment optimum
@@ -64,6 +64,11 @@ LOOSE = 1.1
 #: Local slow-down passes (:func:`_local_passes`) run when the best law still needs a uniform
 #: stretch above this (a dip of the optimal speed the filter cannot follow, e.g. a blend).
 LOCAL_TRIGGER = 1.1
+#: The search under the cruise cap of the jerk rows runs when that cap is below this fraction of
+#: the v/a-optimal x somewhere (0.03-0.07 at blends; 0.65 or more on the single moves measured).
+CRUISE_TRIGGER = 0.5
+#: Local passes stop after two in a row that shorten the law by less than this fraction.
+LOCAL_GAIN = 0.002
 
 
 @dataclass(frozen=True, eq=False)
@@ -410,12 +415,14 @@ class JerkLimited:
         best, best_x, best_beta = search(x_max)
         cap = x_max
         if best[1] * best[0].duration > LOOSE * t_star:
-            # The jerk binds: also try the optimal pass under the cruise cap of the jerk rows.
+            # The jerk binds. Where the optimal profile runs far above the cruise cap of the jerk
+            # rows (a sharp feature such as a blend), also search under that cap.
             cruise = cruise_cap(ps, fine.s, jmax)
-            cruise = cruise if x_max is None else np.minimum(x_max, cruise)
-            other = search(cruise)
-            if other[0][1] * other[0][0].duration < best[1] * best[0].duration:
-                (best, best_x, best_beta), cap = other, cruise
+            if np.any(cruise < CRUISE_TRIGGER * x0):
+                cruise = cruise if x_max is None else np.minimum(x_max, cruise)
+                other = search(cruise)
+                if other[0][1] * other[0][0].duration < best[1] * best[0].duration:
+                    (best, best_x, best_beta), cap = other, cruise
         law, lam = best
         if lam > LOCAL_TRIGGER:     # a local dip the filter cannot follow: slow down near it
             law, lam = _local_passes(fine, best_x, best_beta, best, checker, cap, jmax)
@@ -452,6 +459,7 @@ def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[Box
     lim = checker.limits
     law, lam = best
     cap = x_max
+    stale = 0
     for _ in range(LOCAL_PASSES):
         t, need = checker.need(law)
         cap = local_cap(fine.s, x, law, t, need, float(law.width.max()), cap)
@@ -463,9 +471,11 @@ def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[Box
         else:                                  # keep the window: one check per pass
             law = build_box_law(pieces, law.width)
             lam = checker.stretch(law)
+        gain = lam * law.duration < (1.0 - LOCAL_GAIN) * best[1] * best[0].duration
         if lam * law.duration < best[1] * best[0].duration:
             best = (law, lam)
-        if lam <= 1.0 + CHECK_MARGIN:
+        stale = 0 if gain else stale + 1
+        if lam <= 1.0 + CHECK_MARGIN or stale >= 2:     # within the limits, or no longer paying
             break
     return best
 
