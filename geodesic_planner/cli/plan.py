@@ -3,6 +3,7 @@ geodesic from a YAML request."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from collections.abc import Sequence
@@ -34,6 +35,9 @@ def path_to_dict(path: JointPath, samples: int) -> dict[str, object]:
         'solver': solver,
         'length': float(getattr(path, 'length', float('nan'))),
     }
+    zones = getattr(path, 'zones', None)
+    if zones is not None:      # a blended via sequence: what each blend did to the tool
+        out['blend_zones'] = [dataclasses.asdict(z) for z in zones]
     for end in ('ik_start', 'ik_goal'):
         ik = getattr(path, end, None)
         if ik is not None:

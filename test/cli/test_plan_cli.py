@@ -7,6 +7,7 @@ Failure: one line ``ERROR: ...`` on stderr naming the cause, no traceback, non-z
 """
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import shutil
@@ -312,3 +313,42 @@ def test_unwritable_output_is_one_error_line(tmp_path, capsys):
     assert code != 0
     lines = [ln for ln in out.err.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith('ERROR:') and 'Traceback' not in out.err
+
+
+def test_via_example_with_blends(tmp_path, capsys):
+    """``msg_examples/paper_3r_via_blend.yaml``: the JSON reports one blend zone per via pose; the
+    tool (its own sampled positions) stays within blend_radius of the via pose inside each zone and
+    is on the segments outside them (3R closed-form FK of the sampled joints, independently)."""
+    from geodesic_planner.cli.plan import plan_main
+    example = os.path.join(EXAMPLES, 'paper_3r_via_blend.yaml')
+    with open(example, encoding='utf-8') as fh:
+        req = yaml.safe_load(fh)
+    r = req['blend_radius']
+    pts = [np.array([p['position']['x'], p['position']['y']])
+           for p in [req['start'], *req['via'], req['goal']]]
+    out = tmp_path / 'via.json'
+    assert plan_main([example, '--samples', '2001', '--output', str(out)]) == 0
+    capsys.readouterr()
+    d = json.loads(out.read_text())
+    zones = d['blend_zones']
+    assert [z['via'] for z in zones] == [1, 2, 3]
+    s = np.array(d['s'])
+    q = np.array(d['positions'])
+    c = np.cumsum(q, axis=1)
+    xy = np.stack([np.cos(c).sum(axis=1), np.sin(c).sum(axis=1)], axis=1)   # unit links
+    assert_allclose(np.array(d['ee_positions'])[:, :2], xy, atol=1e-12)
+    inside = np.zeros(s.size, dtype=bool)
+    for z in zones:
+        sel = (s >= z['s_start']) & (s <= z['s_end'])
+        assert sel.sum() >= 20
+        inside |= sel
+        dist = np.linalg.norm(xy[sel] - pts[z['via']], axis=1)
+        assert dist.max() <= r * (1 + 1e-9) and z['max_distance'] <= r * (1 + 1e-9)
+        assert 0.0 < z['deviation'] <= r
+    # outside the zones: on one of the four segments
+    def cross2(u, v):
+        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+    seg = np.min([np.abs(cross2(b - a, xy[~inside] - a)) / np.linalg.norm(b - a)
+                  for a, b in itertools.pairwise(pts)], axis=0)
+    assert seg.max() <= 1e-8
