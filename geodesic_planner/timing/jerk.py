@@ -23,8 +23,8 @@ q(s) never changes, only s(t).
    LOCAL_TRIGGER, the optimal profile is capped near the samples over a limit and filtered again
    with the same window (:func:`.smoothing.local_cap`), keeping the shortest law. When the jerk
    binds and the optimal profile runs far above the cruise cap of the jerk rows (:func:`cruise_cap`,
-   ``x <= (jmax / |q'''|)^(2/3)``: what a blend's third derivative allows), the search is also run
-   under that cap, keeping the shorter law. When the jerk
+   ``x <= (jmax / |q'''|)^(2/3)``: what a blend's third derivative allows), the search runs
+   under that cap instead. When the jerk
    binds (the result is more than LOOSE times the v/a-optimal duration), the optimal pass is
    repeated with the acceleration limits scaled by ACCEL_SCALES, keeping the shortest law: gentler
    accelerations allow gentler ramps (on a line where amax is not reached the 7-segment optimum
@@ -412,17 +412,13 @@ class JerkLimited:
             assert found is not None
             return found
 
-        best, best_x, best_beta = search(x_max)
+        # Where the optimal profile runs far above the cruise cap of the jerk rows (a sharp
+        # feature such as a blend), the search runs under that cap; elsewhere under x_max.
+        cruise = cruise_cap(ps, fine.s, jmax)
         cap = x_max
-        if best[1] * best[0].duration > LOOSE * t_star:
-            # The jerk binds. Where the optimal profile runs far above the cruise cap of the jerk
-            # rows (a sharp feature such as a blend), also search under that cap.
-            cruise = cruise_cap(ps, fine.s, jmax)
-            if np.any(cruise < CRUISE_TRIGGER * x0):
-                cruise = cruise if x_max is None else np.minimum(x_max, cruise)
-                other = search(cruise)
-                if other[0][1] * other[0][0].duration < best[1] * best[0].duration:
-                    (best, best_x, best_beta), cap = other, cruise
+        if np.any(cruise < CRUISE_TRIGGER * x0):
+            cap = cruise if x_max is None else np.minimum(x_max, cruise)
+        best, best_x, best_beta = search(cap)
         law, lam = best
         if lam > LOCAL_TRIGGER:     # a local dip the filter cannot follow: slow down near it
             law, lam = _local_passes(fine, best_x, best_beta, best, checker, cap, jmax)
