@@ -31,7 +31,7 @@ import numpy as np
 
 from .errors import RequestError
 from .geodesic import GeodesicPath
-from .path import JointPath, check_order, check_s
+from .path import JointPath, by_segment, check_order, check_s
 from .piecewise import PiecewiseGeodesicPath
 from .transforms import pose_error, segment_distance
 
@@ -148,12 +148,14 @@ class BlendedPath(JointPath):
                 half[k - 1] = self._zone_length(k, radii[k - 1])
         self._build(half)
         for k in range(1, n):
-            for _ in range(MAX_SHRINKS if half[k - 1] > 0.0 else 0):
+            if half[k - 1] <= 0.0:      # no blend asked: a stop at this via point
+                continue
+            for _ in range(MAX_SHRINKS):
                 if self._report(k, radii[k - 1]).max_distance <= radii[k - 1] * (1.0 + 1e-9):
                     break
                 half[k - 1] *= SHRINK
                 self._build(half)
-            else:       # never within r (or no blend asked): stop at this via point
+            else:       # never within r: stop at this via point
                 half[k - 1] = 0.0
                 self._build(half)
         zones = [self._report(k, radii[k - 1]) for k in range(1, n) if half[k - 1] > 0.0]
@@ -253,12 +255,9 @@ class BlendedPath(JointPath):
         """
         s = check_s(s)
         order = check_order(order)
-        idx = np.clip(np.searchsorted(self._edges, s, side='right') - 1, 0, len(self._segs) - 1)
         out = [np.empty((s.size, self.dof)) for _ in range(order + 1)]
-        for j in np.unique(idx):
-            sel = idx == j
+        for j, sel, x in by_segment(self._edges, s):
             g = self._segs[j]
-            x = np.clip((s[sel] - self._edges[j]) / (self._edges[j + 1] - self._edges[j]), 0.0, 1.0)
             if g.kind == 'piece':
                 vals = self._natural(g.i, g.u0 + x * (g.u1 - g.u0), order)
             else:

@@ -6,6 +6,7 @@ with derivatives w.r.t. s, ``ee_poses(s)`` and ``timed(...)`` (time parameteriza
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -44,6 +45,18 @@ def check_s(s: object) -> np.ndarray:
     if arr.size and (arr.min() < -1e-12 or arr.max() > 1 + 1e-12):
         raise RequestError(f's: values must lie in [0, 1], got [{arr.min():.6g}, {arr.max():.6g}]')
     return np.clip(arr, 0.0, 1.0)
+
+
+def by_segment(edges: np.ndarray, s: np.ndarray) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+    """Split ``s`` (1-D in [0, 1]) over the segments between sorted ``edges`` (n + 1,).
+
+    Yields, for every segment j that holds some of s: (j, boolean mask of those s, their local
+    parameter in [0, 1] along segment j).
+    """
+    idx = np.clip(np.searchsorted(edges, s, side='right') - 1, 0, edges.size - 2)
+    for j in np.unique(idx).tolist():
+        sel = idx == j
+        yield j, sel, np.clip((s[sel] - edges[j]) / (edges[j + 1] - edges[j]), 0.0, 1.0)
 
 
 class JointPath(ABC):

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .geodesic import GeodesicPath, SolverReport
-from .path import JointPath, check_order, check_s
+from .path import JointPath, by_segment, check_order, check_s
 
 
 class PiecewiseGeodesicPath(JointPath):
@@ -72,12 +72,9 @@ class PiecewiseGeodesicPath(JointPath):
         """
         s = check_s(s)
         order = check_order(order)
-        idx = np.clip(np.searchsorted(self.breakpoints, s, side='right') - 1, 0, len(self.pieces) - 1)
         out = [np.empty((s.size, self.dof)) for _ in range(order + 1)]
-        for i in np.unique(idx):
-            sel = idx == i
+        for i, sel, u in by_segment(self.breakpoints, s):
             w = self.breakpoints[i + 1] - self.breakpoints[i]
-            u = np.clip((s[sel] - self.breakpoints[i]) / w, 0.0, 1.0)
             for k, arr in enumerate(self.pieces[i].evaluate(u, order)):
                 out[k][sel] = arr / w**k
         return tuple(out)
