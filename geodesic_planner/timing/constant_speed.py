@@ -43,7 +43,7 @@ import numpy as np
 
 from ..core.errors import LimitError
 from ._arrays import clip
-from .law import JointLimits, PathLike
+from .law import JointLimits, PathLike, final_duration
 from .sampling import PathSamples, refine_adaptively, sample_path
 from .smoothing import CHECK_MARGIN, TOPP_MARGIN
 from .tool import tool_kinematics, tool_rows, tool_speeds, tool_twist
@@ -211,13 +211,7 @@ class ConstantSpeed:
         piece_T = np.array([self._min_time(path, limits, a, b, sided[(sided > a) & (sided < b)])
                             for a, b in itertools.pairwise(bounds.tolist())])
         t_min = float(piece_T.sum())
-        if duration is None:
-            T = t_min
-        else:
-            if duration < t_min * (1.0 - 1e-12):
-                raise LimitError(
-                    f'duration {duration:.6g} s is shorter than the minimum {t_min:.6g} s for these limits')
-            T = float(duration)
+        T = float(final_duration(duration, t_min))
         offsets = np.concatenate([[0.0], np.cumsum(piece_T)])
         offsets[-1] = t_min
         scaling = ConstantSpeedScaling(ramp, offsets, bounds)

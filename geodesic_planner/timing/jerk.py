@@ -36,23 +36,20 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..core.errors import LimitError
 from ._arrays import clip
-from .law import JointLimits, PathLike
+from .law import JointLimits, PathLike, final_duration
 from .sampling import PathSamples, refine_adaptively, sample_path
-from .smoothing import CHECK_MARGIN, LOCAL_PASSES, TOPP_MARGIN, local_cap
+from .smoothing import (CHECK_MARGIN, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS, TOPP_MARGIN,
+                        local_cap)
 from .tool import ToolRows, tool_rows
 from .topp import topp
 from .trajectory import Trajectory
 
-#: Samples of the dense check (those nearest a limit) re-verified with exact path derivatives.
-EXACT_CHECKS = 32
-#: Extra check samples spread uniformly in s (mapped to t).
-S_UNIFORM_CHECKS = 1000
 #: Width factors of the coarse scan (times the reference width), then golden-section steps.
 WIDTH_SCAN = (0.5, 0.71, 1.0, 1.41, 2.0, 2.83, 4.0)
 GOLDEN_STEPS = 5
@@ -242,6 +239,8 @@ class _Checker:
     limits: JointLimits
     tool: ToolRows | None
     check_samples: int | None
+    # The last law's dense grid (the local passes check a law, then ask where it is over).
+    _last: list[object] = field(default_factory=list, repr=False)
 
     @functools.cached_property
     def coef3(self) -> np.ndarray:
@@ -257,13 +256,16 @@ class _Checker:
     def need(self, law: BoxLaw) -> tuple[np.ndarray, np.ndarray]:
         """Check times (M,) and each one's speed factor over the limits (interpolated path
         derivatives): max(v ratio, sqrt(a ratio), cbrt(j ratio)) / (1 - CHECK_MARGIN)."""
-        t, _, rv_t, ra_t, rj_t = self._dense(law)
-        need = np.maximum(np.maximum(rv_t, np.sqrt(ra_t)), np.cbrt(rj_t))
+        dense = self._dense(law)
+        t, need = dense[0], dense[5]
         return t, need / (1.0 - CHECK_MARGIN)
 
     def _dense(self, law: BoxLaw) -> tuple[np.ndarray, tuple[np.ndarray, ...], np.ndarray,
-                                           np.ndarray, np.ndarray]:
-        """The dense grid: times, (s, sd, sdd, sddd) there, and per-sample v, a, j ratios."""
+                                           np.ndarray, np.ndarray, np.ndarray]:
+        """The dense grid: times, (s, sd, sdd, sddd) there, per-sample v, a, j ratios, and each
+        sample's speed factor max(v, sqrt(a), cbrt(j)); the last law's is kept (read only)."""
+        if self._last and self._last[0] is law:
+            return self._last[1]  # type: ignore[return-value]
         ps, lim = self.ps, self.limits
         vmax, amax = lim.max_velocity, lim.max_acceleration
         jmax = lim.max_jerk if lim.max_jerk is not None else np.full(vmax.size, np.inf)
@@ -285,15 +287,17 @@ class _Checker:
         rj_t = (np.abs(a * sddd + 3.0 * b * (sd * sdd) + c * sd**3) / jmax[:, None]).max(axis=0)
         if self.tool is not None:
             rv_t = np.maximum(rv_t, self.tool.ratios(s, sd))
-        return t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t
+        need = np.maximum(np.maximum(rv_t, np.sqrt(ra_t)), np.cbrt(rj_t))
+        out = (t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need)
+        self._last[:] = [law, out]
+        return out
 
     def ratios(self, law: BoxLaw) -> tuple[float, float, float]:
         """Largest |v| / vmax, |a| / amax (tool speed included in v) and |j| / jmax of ``law``."""
         ps = self.ps
-        t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t = self._dense(law)
+        t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need = self._dense(law)
         rv, ra, rj = float(rv_t.max()), float(ra_t.max()), float(rj_t.max())
         # The samples closest to a limit, with the exact path derivatives.
-        need = np.maximum(np.maximum(rv_t, np.sqrt(ra_t)), np.cbrt(rj_t))
         k = max(1, min(EXACT_CHECKS, need.size))
         top = np.argpartition(need, -k)[-k:]
         q_x, a_x, b_x, c_x = (np.asarray(v, dtype=float) for v in self.path.evaluate(s[top], order=3))
@@ -423,13 +427,7 @@ class JerkLimited:
         if lam > LOCAL_TRIGGER:     # a local dip the filter cannot follow: slow down near it
             law, lam = _local_passes(fine, best_x, best_beta, best, checker, cap, jmax)
         t_min = lam * law.duration
-        if duration is None:
-            T = t_min
-        else:
-            if duration < t_min * (1.0 - 1e-12):
-                raise LimitError(
-                    f'duration {duration:.6g} s is shorter than the minimum {t_min:.6g} s for these limits')
-            T = duration
+        T = final_duration(duration, t_min)
         scale = float(T / law.duration)
         rest_times = tuple(float(t) * scale for t in law.t_offsets[:-1]) + (float(T),)
         return trajectory(T, t_min, topp_duration=t_star, rests=law.rests, rest_times=rest_times,

@@ -182,4 +182,19 @@ def check_duration(duration: float | None) -> float | None:
     return value
 
 
-__all__ = ['JointLimits', 'PathLike', 'TimeLaw', 'TimeScaling', 'check_duration', 'joint_limits']
+def final_duration(duration: float | None, t_min: float) -> float:
+    """The trajectory's duration, s: ``t_min`` when ``duration`` is None, else ``duration``.
+
+    Raises:
+        LimitError: ``duration`` shorter than ``t_min`` (the message gives the minimum).
+    """
+    if duration is None:
+        return t_min
+    if duration < t_min * (1.0 - 1e-12):
+        raise LimitError(
+            f'duration {duration:.6g} s is shorter than the minimum {t_min:.6g} s for these limits')
+    return duration
+
+
+__all__ = ['JointLimits', 'PathLike', 'TimeLaw', 'TimeScaling', 'check_duration', 'final_duration',
+           'joint_limits']

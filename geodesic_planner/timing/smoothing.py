@@ -35,7 +35,7 @@ import numpy as np
 
 from ..core.errors import LimitError
 from ._arrays import clip
-from .law import JointLimits, PathLike
+from .law import JointLimits, PathLike, final_duration
 from .sampling import PathSamples, refine_adaptively, sample_path
 from .tool import ToolRows, tool_rows
 from .topp import topp
@@ -385,13 +385,7 @@ class SmoothRestToRest:
                 law, t_min = trial, check.factor * trial.duration
             if check.factor <= LOCAL_TRIGGER:
                 break
-        if duration is None:
-            T = t_min
-        else:
-            if duration < t_min * (1.0 - 1e-12):
-                raise LimitError(
-                    f'duration {duration:.6g} s is shorter than the minimum {t_min:.6g} s for these limits')
-            T = duration
+        T = final_duration(duration, t_min)
         scale = float(T / law.duration)
         rest_times = tuple(float(t) * scale for t in law.t_offsets[:-1]) + (float(T),)
         return Trajectory(path=path, joint_names=joint_names, duration=float(T), max_velocity=vmax,
