@@ -23,6 +23,8 @@ __all__ = [
     'Collector',
     'RclpyRuntime',
     'call_service',
+    'latched_qos',
+    'rosout_collector',
     'wait_for_publishers',
     'wait_for_service',
     'wait_for_subscribers',
@@ -148,6 +150,20 @@ class Collector:
             return next((start + i + 1 for i, m in enumerate(msgs) if predicate(m)), None)
 
         return wait_until(find, timeout, what=f'{what} on {self.topic}', watch=watch) - 1
+
+
+def latched_qos(depth: int = 1) -> Any:  # noqa: ANN401
+    """Reliable, transient-local QoS: a late subscriber still gets the last ``depth`` messages
+    (as robot_state_publisher's /robot_description and /rosout's history)."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def rosout_collector(node: Any) -> Collector:  # noqa: ANN401
+    """Every /rosout message, including the history published before the subscription."""
+    from rcl_interfaces.msg import Log
+    return Collector(node, Log, '/rosout', latched_qos(1000))
 
 
 class StatusWatch:

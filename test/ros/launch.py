@@ -15,8 +15,8 @@ Fixtures (registered by ``test/ros/conftest.py``):
 """
 from __future__ import annotations
 
-from tools.graph import (Collector, RclpyRuntime, call_service, deliver, wait_discovered, wait_for_publishers,
-                         wait_for_service,
+from tools.graph import (Collector, RclpyRuntime, call_service, deliver, latched_qos, rosout_collector,
+                         wait_discovered, wait_for_publishers, wait_for_service,
                          wait_for_subscribers, wait_reader_matched, wait_writer_matched,
                          warm_up_client)
 from tools.process import (DEFAULT_TIMEOUT, NodeProcess, ToolError, bin_dir, format_param, popen_node,
@@ -32,8 +32,10 @@ __all__ = [
                          'call_service',
                          'deliver',
                          'format_param',
+                         'latched_qos',
                          'popen_node',
                          'ros_args_for',
+                         'rosout_collector',
                          'wait_discovered',
                          'wait_for_publishers',
                          'wait_for_service',

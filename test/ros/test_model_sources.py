@@ -22,15 +22,14 @@ pytest.importorskip('geodesic_planner_interfaces')
 
 from geodesic_planner_interfaces.msg import PlanErrorCode
 from geodesic_planner_interfaces.srv import PlanTrajectory
-from rcl_interfaces.msg import Log
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 import geodesic_planner
 
-from .launch import Collector, NodeProcess, RclpyRuntime, call_service, popen_node, wait_until, warm_up_client
+from .launch import (NodeProcess, RclpyRuntime, call_service, latched_qos, popen_node, rosout_collector, wait_until,
+                     warm_up_client)
 from .test_planner_node import GOAL_3R, START_3R, pose_3r
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
@@ -193,11 +192,8 @@ def test_bad_models_refused_at_run_time_node_keeps_planning_memory_bounded(
 def test_bad_urdf_on_robot_description_topic_is_refused(helper: Any, tmp_path: Path) -> None:
     """robot:='' takes its model from /robot_description: a URDF with a cycle is refused (logged,
     plans keep failing with 'no robot model yet'); a good URDF afterwards is taken."""
-    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    rosout = Collector(helper, Log, '/rosout',
-                       QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                                  durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    latched = latched_qos()
+    rosout = rosout_collector(helper)
     description = helper.create_publisher(String, '/robot_description', latched)
     description.publish(String(data=CYCLE_URDF))          # before the node starts: latched
     p = RunningPlanner(helper, tmp_path, {'robot': ''}, '/msd')

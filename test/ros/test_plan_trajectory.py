@@ -23,10 +23,9 @@ pytest.importorskip('geodesic_planner_interfaces')
 from geodesic_planner_interfaces.msg import PlanErrorCode
 from geodesic_planner_interfaces.srv import PlanTrajectory
 from numpy.testing import assert_allclose
-from rcl_interfaces.msg import Log
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
@@ -35,7 +34,7 @@ import geodesic_planner
 from geodesic_planner.core.urdf import chain_from_urdf
 from geodesic_planner.ros import conversions as cv
 
-from .launch import Collector, call_service, popen_node, wait_until, warm_up_client
+from .launch import Collector, call_service, latched_qos, popen_node, rosout_collector, wait_until, warm_up_client
 from .test_planner_node import (GOAL_3R, OTHER_GOAL_3R, ROBOT_3R, START_3R,
                                 check_controller_contract, check_limits, check_line_phi_3r,
                                 fk_3r, ik_3r, pose_3r)
@@ -452,11 +451,8 @@ def described(helper: Any, tmp_path_factory: pytest.TempPathFactory) -> Iterator
                'has_jerk_limits': False}
         for name in KR6.joint_names}}
     (tmp / 'joint_limits.yaml').write_text(yaml.safe_dump(limits))
-    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    rosout = Collector(helper, Log, '/rosout',
-                       QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                                  durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    latched = latched_qos()
+    rosout = rosout_collector(helper)
     description = helper.create_publisher(String, '/robot_description', latched)
     description.publish(String(data=KR6_URDF.read_text()))      # before the node starts: latched
     try:

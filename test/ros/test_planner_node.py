@@ -32,7 +32,7 @@ from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.srv import (DescribeParameters, GetParameters, SetParameters,
                                  SetParametersAtomically)
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
@@ -43,7 +43,7 @@ from geodesic_planner.ros import conversions as cv
 from geodesic_planner.core.transforms import make_transform, pose_error, so3_exp, so3_log
 from geodesic_planner.core.urdf import chain_from_urdf
 
-from .launch import (Collector, call_service, popen_node, wait_for_service,
+from .launch import (Collector, call_service, latched_qos, popen_node, rosout_collector, wait_for_service,
                      wait_for_subscribers, wait_until, warm_up_client)
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
@@ -110,8 +110,7 @@ class PlannerUnderTest:
         self.traj = Collector(node, JointTrajectory, f'{self.name}/joint_trajectory',
                               QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
         self.markers = Collector(node, MarkerArray, f'{self.name}/path_markers',
-                                 QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                                            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+                                 latched_qos(10))
         self.plan_client = node.create_client(GetPlan, f'{self.name}/plan')
         self.set_client = node.create_client(SetParameters, f'{self.name}/set_parameters')
         self.get_client = node.create_client(GetParameters, f'{self.name}/get_parameters')
@@ -165,9 +164,7 @@ class PlannerUnderTest:
 
 @pytest.fixture(scope='module')
 def rosout(helper: Any) -> Collector:
-    return Collector(helper, Log, '/rosout',
-                     QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                                durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    return rosout_collector(helper)
 
 
 @pytest.fixture(scope='module')
@@ -316,8 +313,7 @@ def test_fresh_subscriber_gets_the_trajectory(planar: PlannerUnderTest, helper: 
     # subscribe and call at once (no wait for matching), as a user script would; a subscriber
     # with incompatible QoS (transient_local vs our volatile writer) must not get in the way
     stale = Collector(helper, JointTrajectory, f'{planar.name}/joint_trajectory',
-                      QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                                 durability=DurabilityPolicy.TRANSIENT_LOCAL))
+                      latched_qos())
     fresh = Collector(helper, JointTrajectory, f'{planar.name}/joint_trajectory',
                       QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
     n0 = len(planar.traj)
