@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .cancel import checkpoint
 from .errors import RequestError
 from .geodesic import GeodesicPath
 from .path import JointPath, by_segment, check_order, check_s
@@ -144,6 +145,7 @@ class BlendedPath(JointPath):
         self._ends = ends
         half = np.zeros(n - 1)
         for k in range(1, n):
+            checkpoint()
             if radii[k - 1] > 0.0:
                 half[k - 1] = self._zone_length(k, radii[k - 1])
         self._build(half)
@@ -180,6 +182,7 @@ class BlendedPath(JointPath):
         if self._tool_distance(i, np.array([outside]), target)[0] <= radius:
             return float(self._lengths[i])
         for _ in range(CUT_ROUNDS):
+            checkpoint()
             u = np.linspace(outside, inside, CUT_POINTS)
             within = self._tool_distance(i, u, target) <= radius
             k = int(np.argmax(within))         # first value of u (from outside) within r

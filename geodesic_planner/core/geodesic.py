@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_bvp
 
+from .cancel import checkpoint
 from .errors import BVPError, SingularMetricError
 from .kinematics import Chain
 from .metric import Metric
@@ -280,6 +281,7 @@ def solve_geodesic_bvp(
     deadline = None if time_limit is None else time.perf_counter() + time_limit
 
     def check_time() -> None:
+        checkpoint()
         if deadline is not None and time.perf_counter() > deadline:
             raise _TimeLimitError
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .cancel import checkpoint
 from .errors import IKError, RequestError
 from .kinematics import Chain, embed12
 from .transforms import check_transform, pose_error
@@ -94,6 +95,7 @@ def dls_batch(
     eye = np.eye(n)
     it = 0
     for it in range(1, max_iterations + 1):
+        checkpoint()
         i = np.flatnonzero(active)
         Xi, Ti, ei, ci, li = X[i], T[i], e[i], cost[i], lam[i]
         J = embed12(Xi @ Ti[:, None]).transpose(0, 2, 1) * w[:, None]   # (k, 12, dof)
@@ -160,6 +162,7 @@ def gauss_newton_batch(
     n = robot.dof
     eye = np.eye(n)
     for _ in range(max_iterations + 1):
+        checkpoint()
         X, T = robot.generators(q)
         e = (T[:, :3, :] * w - target).reshape(-1, 12)
         cost = np.einsum('ni,ni->n', e, e)
@@ -363,6 +366,7 @@ def solve_ik(
     res_l: list[float] = []
     total_it = 0
     for batch in batches:
+        checkpoint()
         if batch.shape[0] == 0:
             continue
         q, res, it = dls_batch(robot, np.broadcast_to(T_target, (batch.shape[0], 4, 4)), batch,

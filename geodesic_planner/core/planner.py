@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .cancel import checkpoint
 from .errors import BVPError, LimitError, RequestError
 from .geodesic import (GeodesicEquations, GeodesicPath, SolverReport, collocation_rms, interpolation_error,
                        solve_geodesic_bvp)
@@ -166,6 +167,7 @@ class GeodesicPlanner:
         T_a = self.robot.fk(q_a)
         q = q_a
         for T in line_slerp(T_a, T_goal, np.linspace(0.0, 1.0, GOAL_CONTINUATION_STEPS + 1)[1:-1]):
+            checkpoint()
             step = self._ik(T, q, tolerance, restarts=0, raise_on_failure=False)
             q = step.q
         cont = self._ik(T_goal, q, tolerance, restarts=0, raise_on_failure=False)
@@ -376,6 +378,7 @@ class GeodesicPlanner:
         eq = self.equations
         deadline = None if self.time_limit is None else time.perf_counter() + self.time_limit
         for _ in range(PULLBACK_ROUNDS):
+            checkpoint()
             if deadline is not None and time.perf_counter() > deadline:
                 raise BVPError(f'geodesic solver exceeded its time limit of {self.time_limit:g} s for '
                                f'robot {self.robot.name!r}', status=-2)
@@ -411,6 +414,7 @@ class GeodesicPlanner:
         """
         target = PRESIZE_MARGIN * self.tol
         for _ in range(4):
+            checkpoint()
             a = self.equations.acceleration(q, v)
             rms = collocation_rms(self.equations, s, q, v, a)
             if rms.max() <= target:
@@ -473,6 +477,7 @@ class GeodesicPlanner:
             q_prev = ik_a.q
         pieces = []
         for i, T in enumerate(targets, start=1):
+            checkpoint()
             ik_b = self._goal_ik(T, q_prev, tolerance)
             q_next = snap_same(q_prev, ik_b.q)
             pieces.append(self._solve(q_prev, q_next, ik_a if i == 1 else None, ik_b, time.perf_counter(),

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.cancel import checkpoint
 from ..core.errors import LimitError
 from ._arrays import clip
 from .law import JointLimits, PathLike, final_duration
@@ -224,6 +225,7 @@ def _crossing_times(law: BoxLaw, t: np.ndarray, s: np.ndarray, targets: np.ndarr
     lo, hi = t[j - 1], t[j]
     tc = 0.5 * (lo + hi)
     for _ in range(6):
+        checkpoint()
         sc, sdc, _, _ = law.evaluate(tc, jerk=False)
         step = np.where(sdc > 0, (sc - targets) / np.where(sdc > 0, sdc, 1.0), 0.0)
         tc = clip(tc - step, lo, hi)
@@ -403,6 +405,7 @@ class JerkLimited:
             """The shortest law over the acceleration scales, for the optimal pass under ``cap``."""
             found: tuple[tuple[BoxLaw, float], np.ndarray, float] | None = None
             for beta in (1.0,) + ACCEL_SCALES:
+                checkpoint()
                 x = x0 if beta == 1.0 and cap is x_max else topp(
                     fine, vmax * (1.0 - TOPP_MARGIN), beta * amax * (1.0 - TOPP_MARGIN), cap)
                 pieces = star_pieces(fine.s, x)
@@ -455,6 +458,7 @@ def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[Box
     cap = x_max
     stale = 0
     for _ in range(LOCAL_PASSES):
+        checkpoint()
         t, need = checker.need(law)
         cap = local_cap(fine.s, x, law, t, need, float(law.width.max()), cap)
         x = topp(fine, lim.max_velocity * (1.0 - TOPP_MARGIN),
@@ -493,6 +497,7 @@ def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checke
     ratio = (math.sqrt(5.0) - 1.0) / 2.0
     a, b = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
     for _ in range(GOLDEN_STEPS):
+        checkpoint()
         if total(a) <= total(b):
             hi, b = b, a
             a = hi - ratio * (hi - lo)

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..core.cancel import checkpoint
 from ..core.errors import LimitError
 from ._arrays import clip
 
@@ -209,6 +210,7 @@ def refine_adaptively(path: PathLike, ps: PathSamples, tol: float = 1e-5, max_ro
     count = ps.s.size
     new_s, new_d = [], []
     for _ in range(max_rounds):
+        checkpoint()
         h = s_r - s_l
         bad = _interpolation_suspects(h[:, None], d_l, d_r, scale, dof, tol)
         bad &= h > 1e-7

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.cancel import checkpoint
 from ..core.errors import LimitError
 from ._arrays import clip
 from .law import JointLimits, PathLike, final_duration
@@ -376,6 +377,7 @@ class SmoothRestToRest:
         # near there and smooth again, instead of stretching the whole motion.
         cap = x_max
         for _ in range(LOCAL_PASSES if check.factor > LOCAL_TRIGGER else 0):
+            checkpoint()
             cap = local_cap(fine.s, x, law, check.t, check.need,
                             LOCAL_WINDOW * float(law.pieces[0].max()), cap)
             x = topp(fine, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN), cap)

@@ -20,6 +20,7 @@ import functools
 
 import numpy as np
 
+from ..core.cancel import checkpoint
 from ..core.errors import LimitError
 from ._arrays import row_min
 from .sampling import PathSamples
@@ -193,6 +194,7 @@ def topp(ps: PathSamples, vmax: np.ndarray, amax: np.ndarray, x_max: np.ndarray 
     Raises:
         LimitError: the path cannot be traversed (zero speed forced over a whole step).
     """
+    checkpoint()
     n = ps.s.size - 1
     dl = np.diff(ps.s)[:, None]                                   # (n, 1) step lengths
     with np.errstate(divide='ignore', invalid='ignore', over='ignore'):

@@ -8,9 +8,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from ..core.cancel import checkpoint
 from ..core.errors import LimitError
 from ._arrays import clip
 from .validate import check_trajectory
+
+#: Samples evaluated at once by :meth:`Trajectory.sample` between two cancellation checkpoints
+#: (tens of ms of work; the values do not depend on it).
+SAMPLE_BLOCK = 4096
 
 if TYPE_CHECKING:
     from .law import PathLike, TimeScaling
@@ -144,7 +149,11 @@ class Trajectory:
             TrajectoryError: ``check`` and the samples would be rejected (e.g. dt below 1 ns).
         """
         t = self.times(dt)
-        q, dq, ddq = self.at_time(t)
+        blocks = []
+        for i in range(0, t.size, SAMPLE_BLOCK):
+            checkpoint()
+            blocks.append(self.at_time(t[i:i + SAMPLE_BLOCK]))
+        q, dq, ddq = (np.concatenate(arrays) for arrays in zip(*blocks))
         if check:
             check_trajectory(self.joint_names, t, q, dq, ddq)
         return t, q, dq, ddq
