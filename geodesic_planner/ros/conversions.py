@@ -19,10 +19,14 @@ from std_msgs.msg import ColorRGBA, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
+from ..core.cancel import checkpoint
 from ..core.errors import FrameError, RequestError, quoted
 from ..core.transforms import make_transform, matrix_to_quat, pose_to_transform, quat_to_matrix
 from ..timing.validate import trajectory_problems
 
+#: Points (trajectory points, poses, marker points) built between two cancellation checkpoints
+#: (:mod:`geodesic_planner.core.cancel`): about 15 ms of work on the 2-core machine.
+CHECK_EVERY = 1000
 
 @dataclass(frozen=True)
 class TrajectoryArrays:
@@ -51,6 +55,12 @@ def duration_to_seconds(d: Duration) -> float:
     return d.sec + d.nanosec * 1e-9
 
 
+def time_from_start_ns(t: np.ndarray) -> np.ndarray:
+    """The ``time_from_start`` a JointTrajectory carries for times ``t`` (N,) s: integer ns (N,),
+    rounded like :func:`seconds_to_duration` (half to even)."""
+    return np.rint(np.asarray(t, dtype=float).reshape(-1) * 1e9).astype(np.int64)
+
+
 def arrays_to_joint_trajectory(
     joint_names: list[str],
     t: np.ndarray,
@@ -73,13 +83,15 @@ def arrays_to_joint_trajectory(
     pos = np.asarray(positions, dtype=float)
     vel = None if velocities is None else np.asarray(velocities, dtype=float)
     acc = None if accelerations is None else np.asarray(accelerations, dtype=float)
-    # time_from_start in integer ns, rounded like seconds_to_duration (half to even), split
-    # with floor division; written into each point's own Duration (no extra objects).
-    ns = np.rint(np.asarray(t, dtype=float).reshape(-1) * 1e9).astype(np.int64)
+    # time_from_start in integer ns, split with floor division; written into each point's own
+    # Duration (no extra objects).
+    ns = time_from_start_ns(t)
     secs, nanosecs = np.divmod(ns, 1_000_000_000)
     points = []
     # array.array('d') rows skip the generated setters' per-element checks (much faster).
     for i, (sec, nanosec) in enumerate(zip(secs.tolist(), nanosecs.tolist())):
+        if i % CHECK_EVERY == 0:
+            checkpoint()       # a long message is built in a cancellable plan (core.cancel)
         pt = JointTrajectoryPoint()
         pt.positions = _darray(pos[i])
         if vel is not None:
@@ -212,18 +224,20 @@ def poses_to_path(Ts: np.ndarray, frame_id: str, stamp: Time | None = None) -> P
     """nav_msgs/Path of transforms, shape (N, 4, 4), all in ``frame_id`` with the same stamp."""
     Ts = np.asarray(Ts, dtype=float).reshape(-1, 4, 4)
     header = Header(frame_id=frame_id, stamp=stamp if stamp is not None else Time())
-    quats = matrix_to_quat(Ts[:, :3, :3]).tolist() if len(Ts) else []
     # Default-constructed messages filled through their setters: keyword construction builds
     # (and drops) a default value for every field it is given, about 2.5x slower here.
     poses = []
-    for p, q in zip(Ts[:, :3, 3].tolist(), quats):
-        ps = PoseStamped()
-        ps.header = header
-        pose = ps.pose
-        pos, ori = pose.position, pose.orientation
-        pos.x, pos.y, pos.z = p
-        ori.x, ori.y, ori.z, ori.w = q
-        poses.append(ps)
+    for i in range(0, len(Ts), CHECK_EVERY):
+        checkpoint()
+        block = Ts[i:i + CHECK_EVERY]
+        for p, q in zip(block[:, :3, 3].tolist(), matrix_to_quat(block[:, :3, :3]).tolist()):
+            ps = PoseStamped()
+            ps.header = header
+            pose = ps.pose
+            pos, ori = pose.position, pose.orientation
+            pos.x, pos.y, pos.z = p
+            ori.x, ori.y, ori.z, ori.w = q
+            poses.append(ps)
     return Path(header=header, poses=poses)
 
 
@@ -274,7 +288,11 @@ def path_markers(
     line.pose.orientation.w = 1.0
     line.scale.x = float(line_width)
     line.color = ColorRGBA(r=1.0, g=0.5, b=0.0, a=1.0)
-    line.points = [_point(p) for p in Ts[:, :3, 3]]
+    line.points = []
+    for i, p in enumerate(Ts[:, :3, 3]):
+        if i % CHECK_EVERY == 0:
+            checkpoint()
+        line.points.append(_point(p))
     markers = [clear, line]
     for mid, T in ((1, Ts[0]), (2, Ts[-1])):
         axes = Marker(header=header, ns=ns, id=mid, type=Marker.LINE_LIST, action=Marker.ADD)

@@ -36,12 +36,14 @@ from visualization_msgs.msg import MarkerArray
 
 from .. import GeodesicPlanner, load_robot
 from ..core.blend import BlendedPath
+from ..core.cancel import checkpoint
 from ..core.errors import (BVPError, FrameError, GeodesicPlannerError, IKError, KinematicsError,
                            LimitError, RequestError, SingularMetricError, StartStateError,
                            TrajectoryError)
 from ..core.kinematics import Chain
 from ..io.joint_limits import apply_joint_limits, load_joint_limits
 from ..io.requests import PlanRequest
+from ..timing.validate import trajectory_problems
 from . import conversions as cv
 from . import params
 from .params import PLANNER_PARAMETERS
@@ -488,15 +490,17 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
             'scaling factors')
     t, q, dq, ddq = trajectory.sample(config.sample_period)
     t2 = time.perf_counter()
-    msg = cv.arrays_to_joint_trajectory(list(config.joint_names), t, q, dq, ddq)
-    problems = cv.validate_joint_trajectory(msg)
+    # checked as the message will carry it (times rounded to ns), before the message is built
+    problems = trajectory_problems(config.joint_names, cv.time_from_start_ns(t) * 1e-9, q, dq, ddq)
     if problems:
         raise TrajectoryError(f'generated trajectory is invalid: {problems[:3]}')
+    msg = cv.arrays_to_joint_trajectory(list(config.joint_names), t, q, dq, ddq)
     t3 = time.perf_counter()
     if on_trajectory is not None and not on_trajectory(msg):
         raise PlanAbandonedError
     t4 = time.perf_counter()
-    poses = config.robot.fk(q)
+    poses = np.concatenate([_fk(config.robot, q[i:i + cv.CHECK_EVERY])
+                            for i in range(0, len(q), cv.CHECK_EVERY)])
     path_msg = cv.poses_to_path(poses, config.frame_id, stamp)
     markers = cv.path_markers(poses, config.frame_id)
     path_error = path.line_deviation()
@@ -509,6 +513,12 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
     return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
                       int(solver.iterations), float(solver.time_ms), stages,
                       solver.method, int(solver.mesh_size), path_error, deviation)
+
+
+def _fk(robot: Chain, q: np.ndarray) -> np.ndarray:
+    """``robot.fk(q)`` after a cancellation checkpoint (the tool path is built block by block)."""
+    checkpoint()
+    return robot.fk(q)
 
 
 def blend_deviation(request: PlanRequest, path: object) -> tuple[float, ...]:
