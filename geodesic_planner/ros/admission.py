@@ -1,15 +1,31 @@
-"""Admission and order of plan requests: a bounded queue that refuses visibly when full.
+"""Admission, order and bounded time of plan requests: a queue that refuses visibly when full,
+and a worker that gives a plan up at its deadline and stops it.
 
 The planner node serves its plan services from a pool of executor threads. Each request takes a
 ticket on arrival (:meth:`PlanQueue.enter`): at most ``depth`` requests may hold one (waiting or
 planning); beyond that the request is refused at once, and the refusal is counted, so that work
 the node cannot take is answered and visible instead of piling up unseen in DDS. Ticket holders
 plan one at a time, in arrival order (:meth:`PlanQueue.wait_turn`); one that waits longer than its
-deadline gives its turn up and is answered as timed out. No ROS here: plain threads.
+deadline gives its turn up and is answered as timed out.
+
+The holder of the turn plans through :meth:`PlanWorker.run`: the computation runs in a worker
+thread, and the caller waits at most its timeout. A computation still running then is abandoned:
+its :class:`~geodesic_planner.core.cancel.CancelToken` is cancelled, so it stops at its next
+checkpoint, and whatever it would still commit (publish) is refused. The next run first waits
+for that worker to end, at most ``stop_wait`` s, so one pathological request costs the next one
+its cancellation time, never its whole timeout. No ROS here: plain threads.
 """
 from __future__ import annotations
 
 import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+from ..core.cancel import CancelToken, cancellable
+
+T = TypeVar('T')
 
 
 class PlanQueue:
@@ -30,6 +46,7 @@ class PlanQueue:
         self._given_up: set[int] = set()
         self._inside = 0
         self.refused = 0        # requests refused because the queue was full, since start
+        self.timed_out = 0      # requests that gave their turn up at their deadline, since start
         self.peak = 0           # largest number of requests inside at once
 
     @property
@@ -57,6 +74,7 @@ class PlanQueue:
                 return True
             self._given_up.add(ticket)
             self._inside -= 1
+            self.timed_out += 1
             return False
 
     def leave(self, ticket: int) -> None:
@@ -70,3 +88,91 @@ class PlanQueue:
                 self._given_up.discard(self._serving)
                 self._serving += 1
             self._cond.notify_all()
+
+
+class WorkerBusyError(RuntimeError):
+    """An abandoned computation has not stopped within ``stop_wait`` s (the next run refused)."""
+
+
+@dataclass(frozen=True)
+class Run(Generic[T]):
+    """What one :meth:`PlanWorker.run` came to.
+
+    Attributes:
+        result: the computation's return value (None if it raised or was abandoned).
+        error: what it raised (None on success or when abandoned).
+        abandoned: the timeout passed before it ended and before it committed anything.
+        committed: a ``commit`` of the computation went through (e.g. it published).
+    """
+
+    result: T | None
+    error: BaseException | None
+    abandoned: bool
+    committed: bool
+
+
+class PlanWorker:
+    """Runs one computation at a time in a worker thread, abandoned and cancelled at a timeout.
+
+    ``compute(commit)`` gets a ``commit(action) -> bool`` that runs ``action`` (e.g. a publish)
+    unless the run was abandoned, atomically with abandoning: an abandoned run never commits,
+    and a run that committed is not abandoned (its caller waits for the rest of it).
+    ``on_stopped(seconds)`` is called from an abandoned run's worker when it ends, with the time
+    from its cancellation to its end.
+    """
+
+    def __init__(self, stop_wait: float, on_stopped: Callable[[float], object] = lambda _s: None) -> None:
+        self.stop_wait = stop_wait
+        self._on_stopped = on_stopped
+        self._running = threading.Lock()   # taken before a worker starts, released as it ends
+        self._commit = threading.Lock()    # "commit" and "abandon" exclude each other
+
+    def run(self, compute: Callable[[Callable[[Callable[[], object]], bool]], T], timeout: float) -> Run[T]:
+        """Run ``compute`` in a worker, waiting at most ``timeout`` s for it (see the class).
+
+        Raises:
+            WorkerBusyError: the previous, abandoned run has not ended within ``stop_wait`` s.
+        """
+        if not self._running.acquire(timeout=self.stop_wait):
+            raise WorkerBusyError(f'a plan abandoned earlier has not stopped within {self.stop_wait:g} s')
+        box: dict[str, object] = {}
+        state = {'abandoned': False, 'committed': False}
+        done = threading.Event()
+        token = CancelToken()
+
+        def commit(action: Callable[[], object]) -> bool:
+            with self._commit:
+                if state['abandoned']:
+                    return False
+                action()
+                state['committed'] = True
+                return True
+
+        def work() -> None:
+            try:
+                with cancellable(token):
+                    box['result'] = compute(commit)
+            except BaseException as err:  # noqa: BLE001 - handed to the caller (or dropped if abandoned)
+                box['error'] = err
+            finally:
+                if token.cancelled_at is not None:
+                    self._on_stopped(time.monotonic() - token.cancelled_at)
+                self._running.release()
+                done.set()
+
+        try:
+            threading.Thread(target=work, name='geodesic_plan', daemon=True).start()
+        except BaseException:
+            self._running.release()
+            raise
+        if not done.wait(timeout):
+            with self._commit:
+                state['abandoned'] = not state['committed']
+                if state['abandoned']:
+                    token.cancel(f'abandoned after {timeout:g} s')
+            if state['abandoned']:
+                return Run(None, None, True, False)
+            done.wait()   # it committed: the rest is bounded work without a solver
+        err = box.get('error')
+        return Run(box.get('result'), err if isinstance(err, BaseException) else None,  # type: ignore[arg-type]
+                   False, state['committed'])

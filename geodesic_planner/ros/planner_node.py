@@ -75,12 +75,15 @@ plans/s with 4 clients, 178 ms node CPU per plan. Without them it serves 69 plan
 11.8 ms (targets: p50 <= 15 ms, >= 50 plans/s); the EventsExecutor takes the states for a small
 fraction of a core.
 
-Bounded time: each plan runs in a worker thread and the service callback waits at most
-``plan_timeout`` s for it. A plan still computing then is abandoned: the request fails, and a
-lock shared by "publish" and "abandon" guarantees that its trajectory is never published. (If
-the trajectory was already out, the request waits for its tool path, which needs no solver, and
-succeeds.) A second lock keeps the next plan from running beside an abandoned one still in
-progress (that request fails as "planner busy" after at most ``plan_timeout`` s).
+Bounded time (:class:`~geodesic_planner.ros.admission.PlanWorker`): each plan runs in a worker
+thread and the service callback waits at most ``plan_timeout`` s for it. A plan still computing
+then is abandoned: the request is answered TIMED_OUT at once, its computation is cancelled
+(:mod:`geodesic_planner.core.cancel`: it stops at its next checkpoint, within tens of ms), and
+"publish" and "abandon" exclude each other, so its trajectory is never published. (If the
+trajectory was already out, the request waits for its tool path, which needs no solver, and
+succeeds.) The next plan waits for the abandoned one to stop (at most ``CANCEL_WAIT`` s), then
+gets its own whole ``plan_timeout``; /diagnostics counts ``plans abandoned`` and gives the
+time they took to stop.
 ``kill -USR1 <pid>`` dumps every thread's stack to stderr (faulthandler).
 """
 from __future__ import annotations
@@ -116,7 +119,7 @@ from ..core.errors import GeodesicPlannerError, RequestError, quoted
 from ..io.requests import PlanRequest
 from . import conversions as cv
 from . import params, runtime
-from .admission import PlanQueue
+from .admission import PlanQueue, PlanWorker, WorkerBusyError
 from .diagnostics import NodeStatus
 from .matching import matched_logger, wait_for_matched_subscriptions
 from .params import PLANNER_PARAMETERS
@@ -125,6 +128,9 @@ from .planning import (CODE_NAMES, ConfigError, PlannerConfig, PlanResult, PlanT
                        plan_trajectory_request)
 
 NODE_NAME = 'geodesic_planner'
+#: Longest wait of a plan for an abandoned one to stop, s (its cancellation checkpoints stop it
+#: within tens of ms: docs/testing.md).
+CANCEL_WAIT = 2.0
 
 
 @dataclass(frozen=True)
@@ -164,11 +170,8 @@ class GeodesicPlannerNode(Node):
         self._state: tuple[np.ndarray, tuple[str, ...]] | None = None
         self._last_warn: dict[str, float] = {}
         self._abandoned = 0
-        # Held by the worker computing a plan. Normally uncontended (plans are serialised by
-        # the service's callback group); it keeps a new plan from running beside an abandoned
-        # (timed-out) one that may still be using the same planner object.
-        self._planner_lock = threading.Lock()
-        self._publish_lock = threading.Lock()
+        self._stop_ms_max = 0.0
+        self.worker = PlanWorker(CANCEL_WAIT, self._stopped)
         self._unmatched_graph_count: int | None = None
 
         self.status = NodeStatus(self)
@@ -206,7 +209,8 @@ class GeodesicPlannerNode(Node):
         # at a time, in order). KEEP_ALL: DDS never overwrites a request or a reply in a burst.
         self.queue = PlanQueue(int(self.get_parameter('max_queued_requests').value))
         self._refused_logged = 0
-        self.status.set(max_queued_requests=self.queue.depth, requests_refused_queue_full=0)
+        self.status.set(max_queued_requests=self.queue.depth, requests_refused_queue_full=0,
+                        requests_timed_out_waiting=0, plans_abandoned=0)
         service_qos = QoSProfile(history=HistoryPolicy.KEEP_ALL,
                                  reliability=ReliabilityPolicy.RELIABLE,
                                  durability=DurabilityPolicy.VOLATILE)
@@ -454,6 +458,7 @@ class GeodesicPlannerNode(Node):
             if ticket is None:
                 return self._refuse()
             if not self.queue.wait_turn(ticket, config.plan_timeout):
+                self.status.set(requests_timed_out_waiting=self.queue.timed_out)
                 raise PlanTimeoutError(
                     f'timed out after {config.plan_timeout:g} s waiting for the requests ahead of '
                     'it (plan_timeout)')
@@ -501,59 +506,44 @@ class GeodesicPlannerNode(Node):
     def _plan(self, config: PlannerConfig, request: PlanRequest, current_q: np.ndarray | None,
               velocity_factor: float | None, acceleration_factor: float | None, execute: bool,
               stamp: Time) -> Outcome:
-        """Plan in a worker thread (at most ``plan_timeout`` s) and publish if ``execute``."""
-        box: dict[str, Any] = {}
-        state = {'abandoned': False, 'published': False}
-        done = threading.Event()
+        """Plan through the :class:`~.admission.PlanWorker` (at most ``plan_timeout`` s), publish
+        if ``execute``; an abandoned plan is cancelled and never published."""
+        def compute(commit: Callable[[Callable[[], object]], bool]) -> PlanResult:
+            def publish(msg: JointTrajectory) -> bool:
+                if not execute:
+                    return True
+                self._await_subscriptions()
+                return commit(lambda: self.trajectory_pub.publish(msg))
+            return compute_plan(config, request, current_q, stamp, publish,
+                                velocity_factor=velocity_factor, acceleration_factor=acceleration_factor)
 
-        def publish(msg: JointTrajectory) -> bool:
-            # Runs in the worker; the lock makes "publish" and "abandon" mutually exclusive.
-            if not execute:
-                return True
-            self._await_subscriptions()
-            with self._publish_lock:
-                if state['abandoned']:
-                    return False
-                self.trajectory_pub.publish(msg)
-                state['published'] = True
-                return True
-
-        def work() -> None:
-            try:
-                if not self._planner_lock.acquire(timeout=config.plan_timeout):
-                    raise PlanTimeoutError('planner busy: an earlier request that timed out is '
-                                           'still computing')
-                try:
-                    box['result'] = compute_plan(
-                        config, request, current_q, stamp, publish,
-                        velocity_factor=velocity_factor, acceleration_factor=acceleration_factor)
-                finally:
-                    self._planner_lock.release()
-            except BaseException as err:  # noqa: BLE001 - handed to the service callback
-                box['error'] = err
-            finally:
-                done.set()
-
-        worker = threading.Thread(target=work, name='geodesic_plan', daemon=True)
-        worker.start()
-        if not done.wait(config.plan_timeout):
-            with self._publish_lock:
-                state['abandoned'] = not state['published']
-            if state['abandoned']:
-                self._abandoned += 1
-                return Outcome(PlanErrorCode.TIMED_OUT,
-                               f'timed out after {config.plan_timeout:g} s (plan_timeout); the '
-                               f'computation is abandoned and its result discarded '
-                               f'({self._abandoned} so far)')
-            done.wait()   # the trajectory is out; its tool path follows (bounded, no solver)
-        err = box.get('error')
+        try:
+            run = self.worker.run(compute, config.plan_timeout)
+        except WorkerBusyError as busy:
+            raise PlanTimeoutError(f'planner busy: {busy}') from None
+        if run.abandoned:
+            self._abandoned += 1
+            self.status.set(plans_abandoned=self._abandoned)
+            return Outcome(PlanErrorCode.TIMED_OUT,
+                           f'timed out after {config.plan_timeout:g} s (plan_timeout); the '
+                           f'computation is cancelled and its result discarded '
+                           f'({self._abandoned} so far)')
+        err = run.error
         if isinstance(err, GeodesicPlannerError):
             return Outcome(error_code(err), str(err))
         if err is not None:
-            after = ' (after publishing the trajectory)' if state['published'] else ''
+            after = ' (after publishing the trajectory)' if run.committed else ''
             return Outcome(PlanErrorCode.PLANNING_FAILED,
                            f'internal error{after}: {type(err).__name__}: {err}')
-        return Outcome(PlanErrorCode.SUCCESS, '', box['result'], state['published'])
+        return Outcome(PlanErrorCode.SUCCESS, '', run.result, run.committed)
+
+    def _stopped(self, seconds: float) -> None:
+        """An abandoned plan ended ``seconds`` after its cancellation (diagnostics, log)."""
+        ms = seconds * 1e3
+        self._stop_ms_max = max(self._stop_ms_max, ms)
+        self.status.set(abandoned_plan_stop_ms_last=f'{ms:.1f}',
+                        abandoned_plan_stop_ms_max=f'{self._stop_ms_max:.1f}')
+        self.get_logger().info(f'abandoned plan stopped {ms:.1f} ms after its cancellation')
 
 
 def main(args: list[str] | None = None) -> int:

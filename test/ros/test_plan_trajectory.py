@@ -34,6 +34,8 @@ import geodesic_planner
 from geodesic_planner.core.urdf import chain_from_urdf
 from geodesic_planner.ros import conversions as cv
 
+from tools.graph import StatusWatch
+
 from .launch import Collector, call_service, latched_qos, popen_node, rosout_collector, wait_until, warm_up_client
 from .test_planner_node import (GOAL_3R, OTHER_GOAL_3R, ROBOT_3R, START_3R,
                                 check_controller_contract, check_limits, check_line_phi_3r,
@@ -303,6 +305,38 @@ def test_timed_out(planar: Planner) -> None:
     assert resp.error_code.val == PlanErrorCode.TIMED_OUT, resp.message
     assert 'plan_timeout' in resp.message
     _good_after(planar, n0)
+
+
+def test_abandoned_plan_is_cancelled_and_the_next_one_plans(planar: Planner) -> None:
+    """Issue 26: a plan of ~99 000 points (seconds of work) abandoned at a 0.5 s plan_timeout is
+    cancelled. The good request sent right after the refusal waits only for it to stop (tens of
+    ms), then plans within its own 0.5 s; before, it waited for the abandoned computation to end
+    and timed out too. The abandoned plan is never published."""
+    n0 = len(planar.traj)
+    f = 0.0017                                   # ~990 s at the 3R's limits: ~99 000 points
+    long_one = plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R), execute=True,
+                            velocity_scaling_factor=f, acceleration_scaling_factor=f * f)
+    good_one = plan_request(pose_3r(*START_3R), pose_3r(*OTHER_GOAL_3R), execute=True)
+    planar.set_parameters(plan_timeout=0.5)
+    try:
+        refused = planar.plan(long_one)
+        good = planar.plan(good_one)
+    finally:
+        planar.set_parameters(plan_timeout=5.0)
+    assert refused.error_code.val == PlanErrorCode.TIMED_OUT, refused.message
+    assert 'plan_timeout' in refused.message and 'cancelled' in refused.message
+    assert good.error_code.val == OK, good.message
+    assert good.planning_time < 0.5
+    msgs = planar.traj.wait_for(n0 + 1, DEADLINE, watch=planar.watch)
+    assert len(msgs) == n0 + 1 and msgs[n0] == good.trajectory       # the abandoned one: never
+    stopped = StatusWatch(planar.helper)
+    try:      # the node measured the abandoned plan's stop: well under CANCEL_WAIT
+        stopped.wait(planar.name, 'abandoned plan stop ms max', lambda v: 0.0 <= float(v) < 2000.0,
+                     DEADLINE, watch=planar.watch)
+        print(f"abandoned plan stopped {stopped.values(planar.name)['abandoned plan stop ms last']} ms "
+              f'after its cancellation; the next request took {good.planning_time * 1e3:.1f} ms')
+    finally:
+        planar.helper.destroy_subscription(stopped.subscription)
 
 
 # =========================================================================== start state

@@ -1,0 +1,83 @@
+"""PlanWorker (ros.admission, issue 26 #1): an abandoned plan is cancelled, never commits, and
+the next run waits only for it to stop. Plain threads: no ROS needed."""
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+import pytest
+
+from geodesic_planner.core.cancel import checkpoint
+from geodesic_planner.ros.admission import PlanWorker, WorkerBusyError
+
+
+def spinning(commit_after: float | None = None, cooperative: bool = True,
+             log: list[str] | None = None) -> Callable[[Callable[[Callable[[], object]], bool]], str]:
+    """A computation that runs until cancelled (checking every 1 ms) or, if ``commit_after`` is
+    given, commits once after that many seconds and returns."""
+    def compute(commit: Callable[[Callable[[], object]], bool]) -> str:
+        t0 = time.monotonic()
+        while True:
+            if cooperative:
+                checkpoint()
+            if commit_after is not None and time.monotonic() - t0 >= commit_after:
+                ok = commit(lambda: (log if log is not None else []).append('published'))
+                return 'committed' if ok else 'refused'
+            time.sleep(0.001)
+    return compute
+
+
+def test_a_quick_run_returns_its_result() -> None:
+    run = PlanWorker(1.0).run(lambda commit: 42, 5.0)
+    assert (run.result, run.error, run.abandoned, run.committed) == (42, None, False, False)
+
+
+def test_errors_are_handed_back() -> None:
+    def fail(commit: object) -> None:
+        raise ValueError('bad')
+    run = PlanWorker(1.0).run(fail, 5.0)
+    assert isinstance(run.error, ValueError) and not run.abandoned
+
+
+def test_an_abandoned_run_is_cancelled_and_the_next_one_waits_only_for_it_to_stop() -> None:
+    stops: list[float] = []
+    worker = PlanWorker(2.0, stops.append)
+    t0 = time.monotonic()
+    run = worker.run(spinning(), 0.05)
+    assert run.abandoned and run.result is None and not run.committed
+    nxt = worker.run(lambda commit: 'next', 5.0)
+    assert nxt.result == 'next'
+    assert len(stops) == 1 and 0.0 <= stops[0] < 1.0
+    assert time.monotonic() - t0 < 2.0       # not the abandoned computation's natural end: never
+
+
+def test_an_abandoned_run_never_commits() -> None:
+    log: list[str] = []
+    done = threading.Event()
+    worker = PlanWorker(2.0, lambda _s: done.set())
+    # not cooperative: it would run past its timeout and then try to publish
+    run = worker.run(spinning(commit_after=0.3, cooperative=False, log=log), 0.05)
+    assert run.abandoned
+    assert done.wait(5.0)                    # it ended (refused to commit, returned)
+    assert log == []
+
+
+def test_a_run_that_committed_is_not_abandoned() -> None:
+    log: list[str] = []
+    run = PlanWorker(2.0).run(lambda commit: (commit(lambda: log.append('published')),
+                                              time.sleep(0.2), 'rest')[-1], 0.05)
+    assert not run.abandoned and run.committed and run.result == 'rest' and log == ['published']
+
+
+def test_a_computation_that_ignores_cancellation_makes_the_next_run_busy() -> None:
+    release = threading.Event()
+
+    def stubborn(commit: object) -> None:
+        release.wait(10.0)
+    worker = PlanWorker(0.1)
+    assert worker.run(stubborn, 0.05).abandoned
+    with pytest.raises(WorkerBusyError, match=r'not stopped within 0\.1 s'):
+        worker.run(lambda commit: None, 5.0)
+    release.set()
+    assert worker.run(lambda commit: 'free again', 5.0).result == 'free again'
