@@ -1,8 +1,12 @@
 """Floods of plan requests through the real planner node: every request answered, refusals visible.
 
-Counts are checked against each other, not against figures printed before: replies received =
-requests sent; successful replies = trajectories published (a sentinel plan must be the next
-message); refusals = the node's /diagnostics counter. The figures go to docs/reliability.md.
+The model of outcomes is complete (issue 26 #3): every reply is a success, a refusal because the
+queue was full (PLANNING_FAILED, "planner overloaded"), or a refusal in time (TIMED_OUT, naming
+plan_timeout: the request waited its whole plan_timeout for its turn, or its plan was abandoned).
+Which refusals a loaded machine produces is not asserted; the invariants are: replies received =
+requests sent (nothing lost); successful replies = trajectories published, each once (a sentinel
+plan must be the next message); each kind of refusal = the node's own /diagnostics counter of it.
+The figures go to docs/reliability.md.
 """
 from __future__ import annotations
 
@@ -36,6 +40,18 @@ CLIENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityP
 OVERLOADED = 'planner overloaded'
 
 
+def kind(reply: PlanTrajectory.Response) -> str:
+    """'ok', 'refused' (queue full), 'timed_out' (plan_timeout) or 'other' (a failure of the test)."""
+    code = reply.error_code.val
+    if code == PlanErrorCode.SUCCESS:
+        return 'ok'
+    if code == PlanErrorCode.PLANNING_FAILED and reply.message.startswith(OVERLOADED):
+        return 'refused'
+    if code == PlanErrorCode.TIMED_OUT and 'plan_timeout' in reply.message:
+        return 'timed_out'
+    return 'other'
+
+
 def flood(helper: Any, ns: str, params: dict[str, Any], tmp: Any, n_requests: int, n_clients: int,
           request: PlanTrajectory.Request) -> dict[str, Any]:
     """Start a planner in ``ns``, send ``n_requests`` at once from ``n_clients``, count everything."""
@@ -64,8 +80,8 @@ def flood(helper: Any, ns: str, params: dict[str, Any], tmp: Any, n_requests: in
         seconds = time.monotonic() - t0
         replies = [f.result() for f in futures]
         codes = [r.error_code.val for r in replies]
-        ok = sum(c == PlanErrorCode.SUCCESS for c in codes)
-        refused = sum(r.message.startswith(OVERLOADED) for r in replies)
+        kinds = [kind(r) for r in replies]
+        ok, refused, timed_out = (kinds.count(k) for k in ('ok', 'refused', 'timed_out'))
         # exactly the successful plans were published: a sentinel plan is the next message
         traj.wait_for(n0 + ok, DEADLINE, watch=watch)
         sentinel = call_service(clients[0], _sentinel(), DEADLINE, watch=watch)
@@ -77,8 +93,12 @@ def flood(helper: Any, ns: str, params: dict[str, Any], tmp: Any, n_requests: in
                         watch=watch)
             wait_until(lambda: any(OVERLOADED in m.msg for m in rosout.messages), DEADLINE,
                        what='the overload warning', watch=watch)
+        # every refusal in time is counted by the node: waited too long, or abandoned
+        status.wait(name, 'requests timed out waiting',
+                    lambda v: int(v) + int(status.values(name).get('plans abandoned', '-1')) == timed_out,
+                    DEADLINE, watch=watch)
         return {'sent': n_requests, 'answered': len(replies), 'ok': ok, 'refused': refused,
-                'other': len(replies) - ok - refused, 'codes': sorted(set(codes)),
+                'timed_out': timed_out, 'other': kinds.count('other'), 'codes': sorted(set(codes)),
                 'messages': sorted({r.message[:60] for r in replies if r.error_code.val != 1}),
                 'seconds': seconds, 'rss_before': rss_before, 'rss_after': _rss_mb(proc.pid),
                 'published': len(msgs) - n0 - 1}
@@ -102,8 +122,8 @@ def test_burst_of_500_every_request_answered(helper: Any, tmp_path: Any) -> None
     print(f'burst of 500: {got}')
     assert got['answered'] == 500                       # lost = 0
     assert got['other'] == 0, got['messages']           # answered = planned + refused visibly
-    assert got['ok'] + got['refused'] == 500
-    assert got['ok'] >= 32 and got['published'] == got['ok']
+    assert got['ok'] + got['refused'] + got['timed_out'] == 500
+    assert got['ok'] >= 1 and got['published'] == got['ok']
     assert got['rss_after'] - got['rss_before'] < 50.0, got      # MB
 
 
@@ -116,4 +136,7 @@ def test_full_queue_refuses_at_once_and_says_so(helper: Any, tmp_path: Any) -> N
                                    'sample_period': 4e-5, 'plan_timeout': 60.0}, tmp_path, 20, 4, req)
     print(f'burst of 20 into a queue of 2: {got}')
     assert got['answered'] == 20 and got['other'] == 0, got['messages']
-    assert got['ok'] == 2 and got['refused'] == 18 and got['published'] == 2
+    assert got['ok'] + got['refused'] + got['timed_out'] == 20 and got['published'] == got['ok']
+    # at most two requests inside at once and 60 s to plan: the 18 sent beside the first two are
+    # refused at once (a request sent after a plan ended would be planned: not asserted away)
+    assert got['ok'] >= 2 and got['refused'] >= 1 and got['timed_out'] == 0
