@@ -221,7 +221,7 @@ _MALFORMED = [
      r"joint 'j' \(revolute\) needs a <limit>"),
     (GOOD.replace('xyz="0 0 1" rpy', 'xyz="0 1" rpy'), "joint 'j' origin xyz: expected 3 finite numbers"),
     (GOOD.replace('rpy="0 0 0"', 'rpy="a b c"'), "joint 'j' origin rpy: not numbers"),
-    (GOOD.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 nan"/>'), "joint 'j' axis: expected 3 finite numbers"),
+    (GOOD.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 nan"/>'), "joint 'j' axis: not numbers"),
     (GOOD.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>'), 'invalid axis'),
     (GOOD.replace('<parent link="a"/>', ''), "joint 'j' lacks a parent or child link"),
     (GOOD.replace('upper="1"', 'upper="x"'), r"joint 'j': bad <limit>"),
@@ -255,7 +255,9 @@ def test_load_robot_urdf_file_errors(tmp_path):
     ('<safety_controller soft_lower_limit="-0.5" soft_upper_limit="0.75" k_position="10" k_velocity="1"/>',
      (-0.5, 0.75)),
     ('<safety_controller soft_lower_limit="-2" soft_upper_limit="0.5" k_velocity="1"/>', (-1.0, 0.5)),
-    ('<safety_controller k_velocity="1"/>', (-1.0, 1.0)),
+    # a soft limit not given is 0, as urdfdom reads it (and MoveIt and ros2_control use it)
+    ('<safety_controller soft_lower_limit="-0.25" k_velocity="1"/>', (-0.25, 0.0)),
+    ('<safety_controller soft_upper_limit="0.5" k_velocity="1"/>', (0.0, 0.5)),
     ('', (-1.0, 1.0)),
 ])
 def test_safety_controller_soft_limits_narrow_the_position_limits(safety, expected):
@@ -263,8 +265,18 @@ def test_safety_controller_soft_limits_narrow_the_position_limits(safety, expect
     assert (robot.lower[0], robot.upper[0]) == expected
 
 
+def test_safety_controller_does_not_bound_a_continuous_joint():
+    """MoveIt and ros2_control keep a continuous joint unbounded whatever its safety controller says."""
+    xml = GOOD.replace('type="revolute"', 'type="continuous"').replace(
+        '</joint>', '<safety_controller soft_lower_limit="-0.5" soft_upper_limit="0.5" k_velocity="1"/></joint>')
+    robot = chain_from_urdf(xml)
+    assert (robot.lower[0], robot.upper[0]) == (-np.inf, np.inf)
+
+
 @pytest.mark.parametrize('safety, match', [
     ('<safety_controller soft_lower_limit="0.9" soft_upper_limit="-0.9" k_velocity="1"/>', 'leave no room'),
+    ('<safety_controller k_velocity="1"/>', r'soft limits \[0, 0\] leave no room .*a soft limit not given is 0'),
+    ('<safety_controller soft_lower_limit="-1" soft_upper_limit="1"/>', 'has no k_velocity'),
     ('<safety_controller soft_lower_limit="abc" k_velocity="1"/>', 'bad <safety_controller>'),
     ('<safety_controller soft_upper_limit="nan" k_velocity="1"/>', 'NaN'),
 ])
@@ -300,9 +312,11 @@ def test_cycles_are_refused_at_once(edges, kwargs):
 
 def test_disconnected_tip_is_refused():
     with pytest.raises(KinematicsError, match='not below base_link'):
-        chain_from_urdf(_graph_urdf([('a', 'b'), ('x', 'y')]), base_link='a', tip_link='y')
-    with pytest.raises(KinematicsError, match='one root link'):
-        chain_from_urdf(_graph_urdf([('a', 'b'), ('x', 'y')]))
+        chain_from_urdf(_graph_urdf([('a', 'b'), ('a', 'x'), ('x', 'y')]), base_link='b', tip_link='y')
+    # two separate trees: urdfdom refuses the document ("Two root links found"), whatever the chain ends
+    for kwargs in ({}, {'base_link': 'a', 'tip_link': 'b'}, {'base_link': 'a', 'tip_link': 'y'}):
+        with pytest.raises(KinematicsError, match=r"one root link, found 2: \['a', 'x'\]"):
+            chain_from_urdf(_graph_urdf([('a', 'b'), ('x', 'y')]), **kwargs)
 
 
 @settings(max_examples=150, deadline=2000)
@@ -332,7 +346,7 @@ def test_hostile_documents_are_refused(xml, match):
 
 
 def test_oversized_text_is_refused_before_parsing(monkeypatch):
-    import geodesic_planner.core.urdf as urdf_module
+    import geodesic_planner.core.urdf_xml as urdf_module
     monkeypatch.setattr(urdf_module, 'MAX_URDF_BYTES', 1000)
     with pytest.raises(KinematicsError, match='more than the 1000'):
         chain_from_urdf(GOOD + ' ' * 1000)
