@@ -26,6 +26,7 @@ part that the root does not reach).
 """
 from __future__ import annotations
 
+import html
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -54,6 +55,10 @@ VERSIONS = ((1, 0), (1, 1), (1, 2))
 _NUMBER = re.compile(r'[ \t\n\v\f\r]*[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?')
 # What C ``strtol`` reads to the end of the text (a version field).
 _INTEGER = re.compile(r'[ \t\n\v\f\r]*[+-]?\d+')
+# A start tag and its attributes, in the document's UTF-8 bytes.
+_START_TAG = re.compile(rb'<[^\s/>]+((?:\s+[^\s=/>]+\s*=\s*(?:"[^"]*"|\'[^\']*\'))*)\s*/?>')
+_ATTRIBUTE = re.compile(rb'([^\s=]+)\s*=\s*(?:"([^"]*)"|\'([^\']*)\')')
+_BLANKS = (b'\t', b'\n', b'\r')
 
 
 @dataclass(frozen=True)
@@ -179,7 +184,11 @@ def _read_xml(xml: str) -> ET.Element:
     refusal = 'URDF: a DOCTYPE or entity declaration is not accepted'
     if '<!DOCTYPE' in xml or '<!ENTITY' in xml:
         raise KinematicsError(refusal)
-    parser = expat.ParserCreate('utf-8')  # the text is already decoded; no namespace separator
+    try:
+        data = xml.encode('utf-8')
+    except UnicodeEncodeError as err:
+        raise KinematicsError(f'URDF: not valid XML ({err.reason} at character {err.start})') from err
+    parser = expat.ParserCreate('utf-8')  # no namespace separator: names as written
     parser.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)
     stack: list[ET.Element | None] = []
     top: list[ET.Element] = []
@@ -193,6 +202,8 @@ def _read_xml(xml: str) -> ET.Element:
         if len(stack) > KEEP_DEPTH:
             stack.append(None)
             return
+        if attrs:
+            _restore_blanks(data, parser.CurrentByteIndex, attrs)
         el = ET.Element(name, attrs)
         parent = stack[-1] if stack else None
         if parent is None:
@@ -209,10 +220,26 @@ def _read_xml(xml: str) -> ET.Element:
     parser.StartDoctypeDeclHandler = refuse
     parser.EntityDeclHandler = refuse
     try:
-        parser.Parse(xml, True)
+        parser.Parse(data, True)
     except expat.ExpatError as err:
         raise KinematicsError(f'URDF: not valid XML ({err})') from err
     return top[0]
+
+
+def _restore_blanks(data: bytes, start: int, attrs: dict[str, str]) -> None:
+    """Put back the tabs and line breaks that XML's attribute-value normalisation made spaces.
+
+    expat turns them into spaces; tinyxml2, and so urdfdom, keeps them, and then ``xyz="0<tab>0 1"``
+    or ``xyz="0 0 1<newline>"`` is no vector. ``start``: the byte index of the start tag in ``data``.
+    """
+    tag = _START_TAG.match(data, start)
+    if tag is None or not any(c in tag.group(1) for c in _BLANKS):
+        return
+    for m in _ATTRIBUTE.finditer(tag.group(1)):
+        raw = m.group(2) if m.group(2) is not None else m.group(3)
+        if any(c in raw for c in _BLANKS):
+            text = raw.decode('utf-8').replace('\r\n', '\n').replace('\r', '\n')
+            attrs[m.group(1).decode('utf-8')] = html.unescape(text)
 
 
 def _joint(j: ET.Element, links: set[str], model: str) -> UrdfJoint:
