@@ -411,10 +411,20 @@ def test_any_link_graph_gives_a_chain_or_one_clear_error(parents, base, tip):
     ('<robot name="r">' + '<link name="x"/>' * 20_001 + '</robot>', 'more than the 20000'),
     (GOOD.replace('velocity="1"', 'velocity="inf"'), 'must be finite'),
     (GOOD.replace('lower="-1"', 'lower="nan"'), 'must be finite'),
-], ids=['doctype', 'too-many-elements', 'inf-velocity', 'nan-limit'])
+    # half a million elements inside an ignored block: counted and refused, never all kept
+    (GOOD.replace('</robot>', '<gazebo>' + '<a/>' * 500_001 + '</gazebo></robot>'),
+     'more than the 500000 XML elements'),
+], ids=['doctype', 'too-many-elements', 'inf-velocity', 'nan-limit', 'too-many-xml-elements'])
+@pytest.mark.timeout(20)
 def test_hostile_documents_are_refused(xml, match):
     with pytest.raises(KinematicsError, match=match):
         chain_from_urdf(xml)
+
+
+def test_deep_nesting_in_an_ignored_block_is_read_without_keeping_it():
+    """200 000 nested elements (deeper than any recursion limit): read, not kept, the chain is GOOD's."""
+    xml = GOOD.replace('</robot>', '<gazebo>' + '<a>' * 200_000 + '</a>' * 200_000 + '</gazebo></robot>')
+    assert_allclose(chain_from_urdf(xml).fk(np.array([0.4])), chain_from_urdf(GOOD).fk(np.array([0.4])), atol=0)
 
 
 def test_oversized_text_is_refused_before_parsing(monkeypatch):
