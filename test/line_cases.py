@@ -17,4 +17,3 @@ MISSED = {
 #: A move whose line passes through the folded elbow (q3 = -pi) at about 83 % of the way.
 THROUGH_ELBOW = ([-0.652782, 2.520555, -3.04493, -1.239629, 1.582917, -2.12694],
                  [-0.736041, 2.729993, -3.138125, -1.393852, 1.81727, -2.380489])
-

@@ -163,4 +163,3 @@ def _stop_error(robot: Chain, q: np.ndarray, fraction: float) -> PathFollowError
         f'the straight line cannot be followed by robot {robot.name!r} beyond {_percent(fraction)} '
         f'of the way ({_where(robot, q)}): no configuration near the start\'s branch reaches the '
         f'next pose; followable fraction {fraction:.4f}', fraction=fraction)
-
