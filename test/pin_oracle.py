@@ -92,3 +92,75 @@ def rotation_angle(Ra: np.ndarray, Rb: np.ndarray) -> float:
     s = 0.5 * np.linalg.norm([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
     c = 0.5 * (np.trace(E) - 1.0)
     return float(np.arctan2(s, c))
+
+
+def line_slerp_pose(T_a: np.ndarray, T_b: np.ndarray, s: float) -> np.ndarray:
+    """The pose at ``s`` of the straight line + slerp from T_a to T_b, by pinocchio's SO(3) maps."""
+    R = T_a[:3, :3] @ pin.exp3(s * pin.log3(T_a[:3, :3].T @ T_b[:3, :3]))
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = (1.0 - s) * T_a[:3, 3] + s * T_b[:3, 3]
+    return T
+
+
+class Kinematics:
+    """pinocchio's FK and Jacobian of one chain, with the model's data kept between calls."""
+
+    def __init__(self, m: pin.Model, names: list[str], base: str, tip: str) -> None:
+        self.m, self.d = m, m.createData()
+        self.base, self.tip = frame(m, base), frame(m, tip)
+        self.names = names
+        self.cols = [m.joints[m.getJointId(n)].idx_v for n in names]
+
+    def pose_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """T_base_tip (4x4) and the tip's Jacobian in the base frame, rows [v; w] (6, n)."""
+        m, d = self.m, self.d
+        qp = configuration(m, self.names, q)
+        pin.computeJointJacobians(m, d, qp)
+        pin.updateFramePlacements(m, d)
+        B = d.oMf[self.base]
+        T = np.linalg.inv(B.homogeneous) @ d.oMf[self.tip].homogeneous
+        J = pin.getFrameJacobian(m, d, self.tip, pin.LOCAL_WORLD_ALIGNED)
+        R = B.rotation.T
+        return T, np.vstack([R @ J[:3, self.cols], R @ J[3:, self.cols]])
+
+
+def follow(kin: Kinematics, q_a: np.ndarray, T_b: np.ndarray, steps: int = 1000
+           ) -> tuple[np.ndarray, float, float]:
+    """An independent continuation along the line + slerp from q_a's tool pose to T_b.
+
+    Each of ``steps`` equal steps is solved by Newton iterations on pinocchio's FK and Jacobian
+    from the previous configuration (the issue's "IK from the previous sample"). Returns (q at
+    every step (steps + 1, n), smallest singular value of the Jacobian met, start included,
+    largest joint step); q is NaN from the first step that did not converge to 1e-12.
+    """
+    T_a, J = kin.pose_and_jacobian(q_a)
+    qs = np.full((steps + 1, len(kin.names)), np.nan)
+    qs[0] = q = np.array(q_a, dtype=float)
+    sigma = float(np.linalg.svd(J, compute_uv=False)[-1])
+    for k in range(1, steps + 1):
+        target = line_slerp_pose(T_a, T_b, k / steps)
+        for _ in range(20):
+            T, J = kin.pose_and_jacobian(q)
+            err = np.concatenate([target[:3, 3] - T[:3, 3], T[:3, :3] @ pin.log3(T[:3, :3].T @ target[:3, :3])])
+            if np.abs(err).max() < 1e-12:
+                break
+            q = q + np.linalg.lstsq(J, err, rcond=None)[0]
+        else:
+            return qs, sigma, float(np.nanmax(np.abs(np.diff(qs, axis=0)), initial=0.0))
+        sigma = min(sigma, float(np.linalg.svd(J, compute_uv=False)[-1]))
+        qs[k] = q
+    return qs, sigma, float(np.abs(np.diff(qs, axis=0)).max())
+
+
+def line_errors(m: pin.Model, names: list[str], base: str, tip: str, qs: np.ndarray, s: np.ndarray,
+                T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:
+    """Largest distance (m) and angle (rad) of pinocchio's tool poses at joints qs from the line +
+    slerp at s."""
+    dp = dr = 0.0
+    for q, si in zip(qs, s):
+        T = fk(m, names, q, base, tip)
+        ref = line_slerp_pose(T_a, T_b, float(si))
+        dp = max(dp, float(np.linalg.norm(T[:3, 3] - ref[:3, 3])))
+        dr = max(dr, rotation_angle(T[:3, :3], ref[:3, :3]))
+    return dp, dr
