@@ -41,6 +41,8 @@ MAX_JOINT_STEP = 0.1
 MAX_JOINT_RATE = 50.0
 #: A step is exact when the weighted embedding residual is below this (m), as the fast route.
 EXACT_RESIDUAL = 1e-10
+#: Points per step at which the joints are checked against their limits.
+LIMIT_CHECKS = 8
 #: Smallest singular value of the geometric Jacobian, relative to its largest, under which a
 #: stop is reported as a singularity.
 SINGULAR_RATIO = 1e-2
@@ -84,6 +86,8 @@ def follow_line(robot: Chain, q_a: np.ndarray, T_a: np.ndarray, T_b: np.ndarray,
     s_done, q_done = [0.0], [np.array(q_a, dtype=float)]
     s, q = 0.0, q_done[0]
     v: np.ndarray | None = None
+    dp = T_b[:3, 3] - T_a[:3, 3]
+    rate = _rate(robot, q, T_a[:3, :3], dp, w_body)
     ds = INITIAL_STEP
     while s < 1.0:
         checkpoint()
@@ -98,12 +102,13 @@ def follow_line(robot: Chain, q_a: np.ndarray, T_a: np.ndarray, T_b: np.ndarray,
         step = np.abs(q_new - q)
         if (np.isfinite(res[0]) and res[0] < EXACT_RESIDUAL
                 and step.max() <= min(MAX_JOINT_STEP, MAX_JOINT_RATE * ds)):
-            crossing = _limit_crossing(robot, q, q_new, s, ds)
+            rate_new = _rate(robot, q_new, target[0, :3, :3], dp, w_body)
+            crossing = _limit_crossing(robot, q, q_new, rate, rate_new, s, ds)
             if crossing is not None:
                 return LineFollow(np.array(s_done), np.array(q_done), crossing[0],
                                   _limit_error(robot, q, crossing, T_a, T_b, w_body))
             v = (q_new - q) / ds
-            s, q = s + ds, q_new
+            s, q, rate = s + ds, q_new, rate_new
             s_done.append(s)
             q_done.append(q)
             ds = min(2.0 * ds, MAX_STEP)
@@ -115,18 +120,35 @@ def follow_line(robot: Chain, q_a: np.ndarray, T_a: np.ndarray, T_b: np.ndarray,
     return LineFollow(np.array(s_done), np.array(q_done), 1.0, None)
 
 
-def _limit_crossing(robot: Chain, q: np.ndarray, q_new: np.ndarray, s: float, ds: float
-                    ) -> tuple[float, int] | None:
-    """(fraction, joint) where the step from q to q_new first crosses a position limit, or None."""
-    lower, upper = robot.lower, robot.upper
-    out = (q_new < lower) | (q_new > upper)
+def _rate(robot: Chain, q: np.ndarray, R: np.ndarray, dp: np.ndarray, w_body: np.ndarray) -> np.ndarray:
+    """Joint velocity at q along the line, per unit of the line's parameter: least squares of the
+    geometric Jacobian against the line's twist (tool velocity ``dp`` = p_b - p_a, angular
+    velocity ``R w_body`` in the base frame, ``R`` the tool's rotation at q)."""
+    return np.linalg.lstsq(robot.jacobian(q), np.concatenate([dp, R @ w_body]), rcond=None)[0]
+
+
+def _limit_crossing(robot: Chain, q: np.ndarray, q_new: np.ndarray, rate: np.ndarray, rate_new: np.ndarray,
+                    s: float, ds: float) -> tuple[float, int] | None:
+    """(fraction, joint) where the step from q to q_new first leaves a position limit, or None.
+
+    The joints between the two samples are the cubic Hermite interpolant of their positions and
+    rates (error O(ds⁴)), checked at LIMIT_CHECKS points: an excursion past a limit and back
+    within one step is found too.
+    """
+    u = np.linspace(0.0, 1.0, LIMIT_CHECKS + 1)[1:, None]
+    h00, h10, h01, h11 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u, -2 * u**3 + 3 * u**2, u**3 - u**2
+    path = h00 * q + h10 * ds * rate + h01 * q_new + h11 * ds * rate_new      # (checks, dof)
+    path[-1] = q_new
+    out = (path < robot.lower) | (path > robot.upper)
     if not np.any(out):
         return None
-    bound = np.where(q_new > upper, upper, lower)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        t = np.where(out, (bound - q) / (q_new - q), np.inf)
-    j = int(np.argmin(t))
-    return s + ds * float(np.clip(t[j], 0.0, 1.0)), j
+    k = int(np.argmax(np.any(out, axis=1)))
+    j = int(np.argmax(out[k]))
+    prev = q if k == 0 else path[k - 1]
+    bound = robot.upper[j] if path[k, j] > robot.upper[j] else robot.lower[j]
+    t = (bound - prev[j]) / (path[k, j] - prev[j]) if path[k, j] != prev[j] else 1.0
+    u0 = 0.0 if k == 0 else float(u[k - 1, 0])
+    return s + ds * (u0 + (float(u[k, 0]) - u0) * float(np.clip(t, 0.0, 1.0))), j
 
 
 def _where(robot: Chain, q: np.ndarray) -> str:

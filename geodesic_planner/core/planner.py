@@ -26,7 +26,7 @@ import numpy as np
 
 from .cancel import checkpoint
 from .continuation import LineFollow, follow_line
-from .errors import BVPError, LimitError, RequestError, SingularMetricError
+from .errors import BVPError, LimitError, LineLimitError, RequestError, SingularMetricError
 from .geodesic import (GeodesicEquations, GeodesicPath, SolverReport, collocation_rms, interpolation_error,
                        solve_geodesic_bvp)
 from .ik import IKSolution, dls_batch, gauss_newton_batch, nearest_branch, nearest_turn, solve_ik
@@ -339,7 +339,16 @@ class GeodesicPlanner:
         q = path.evaluate(s, order=0)[0]
         out = (q < r.lower - LIMIT_SLACK) | (q > r.upper + LIMIT_SLACK)
         if np.any(out):
-            k, i = (int(x) for x in np.argwhere(out)[0])
+            order = np.argsort(s)
+            k = int(order[np.argmax(np.any(out[order], axis=1))])      # the first place out
+            i = int(np.argmax(out[k]))
+            if path.solver.method == 'pullback':    # the path is the line: say where, as a fraction
+                bound = r.upper[i] if q[k, i] > r.upper[i] else r.lower[i]
+                x, y, z = self.robot.fk(q[k])[:3, 3]
+                raise LineLimitError(
+                    f'the straight line cannot be followed by robot {r.name!r}: joint {r.joint_names[i]!r} '
+                    f'would pass its limit {bound:.6g} at {100.0 * s[k]:.3g} % of the way (tool at '
+                    f'{x:.4f}, {y:.4f}, {z:.4f} m); followable fraction {s[k]:.4f}', fraction=float(s[k]))
             raise LimitError(f'the geodesic leaves the joint limits: joint {r.joint_names[i]!r} reaches '
                              f'{q[k, i]:.6g} at s = {s[k]:.3f} (limits [{r.lower[i]:.6g}, {r.upper[i]:.6g}])')
 
@@ -380,15 +389,15 @@ class GeodesicPlanner:
             s_sol, q_sol, v_sol, a_sol, rep = solve_geodesic_bvp(
                 self.equations, q_a, q_b, s, q_g, v_g, tol=self.tol, max_nodes=self.max_nodes,
                 time_limit=self.time_limit)
-        except (BVPError, SingularMetricError) as err:
-            if line_error is not None:       # the reason and the place, not the solver's words
+            rep = SolverReport(rep.status, rep.message, rep.iterations, rep.max_residual, rep.mesh_size,
+                               (time.perf_counter() - t0) * 1e3, rep.bc_residual)
+            path = GeodesicPath(self.equations, s_sol, q_sol, v_sol, rep, ik_a, ik_b, a_sol)
+            if self.check_limits:
+                self._check_path_limits(path)
+        except (BVPError, SingularMetricError, LimitError) as err:
+            if line_error is not None:       # the line's reason and place, not the solver's words
                 raise line_error from err
             raise
-        rep = SolverReport(rep.status, rep.message, rep.iterations, rep.max_residual, rep.mesh_size,
-                           (time.perf_counter() - t0) * 1e3, rep.bc_residual)
-        path = GeodesicPath(self.equations, s_sol, q_sol, v_sol, rep, ik_a, ik_b, a_sol)
-        if self.check_limits:
-            self._check_path_limits(path)
         return path
 
     def _line_is_geodesic(self) -> bool:

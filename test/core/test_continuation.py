@@ -91,3 +91,25 @@ def test_the_whole_followed_line_is_on_the_line_and_ends_at_the_goal_pose() -> N
     assert dp <= 1e-9 and dr <= 1e-9
     # this goal pose is reached on the other wrist branch than the sampled goal joints
     assert np.abs(follow.q[-1] - q_b).max() > 3.0
+
+
+def test_a_limit_passed_between_two_samples_is_found() -> None:
+    """Unitree Z1 (corpus URDF): the goal has joint4 on its upper limit and the line takes joint4
+    3.4e-4 rad past it and back around 60 % of the way, within one continuation step. The refusal
+    names joint4 and the place, where pinocchio's own continuation (1000 steps) crosses it."""
+    import pin_oracle as P
+    from test_real_arms import ARMS, arm
+    _, base, tip, _ = ARMS['unitree_z1']
+    _, robot, m = arm('unitree_z1')
+    q_a = np.array([0.6041550309385775, 1.1383942199377417, -0.00803480812535362, 1.4602358089562382,
+                    0.4987010536003409, 0.840323123533171])
+    q_b = np.array([0.7172230692811415, 1.071747074325204, -0.22697690511190688, 1.5184364492350666,
+                    0.5139136470857764, 0.7264682488685443])
+    kin = P.Kinematics(m, robot.joint_names, base, tip)
+    T_b = kin.pose_and_jacobian(q_b)[0]
+    qs, _, _ = P.follow(kin, q_a, T_b, 1000)
+    over = np.flatnonzero(qs[:, 3] > robot.upper[3])
+    assert over.size and qs[-1, 3] <= robot.upper[3] + 1e-9          # out and back within the line
+    with pytest.raises(LineLimitError, match=r"joint 'joint4' would pass its limit 1\.51844") as info:
+        GeodesicPlanner(robot).plan(None, T_b, start_joints=q_a)
+    assert abs(info.value.fraction - over[0] / 1000) < 2e-3, (info.value.fraction, over[0] / 1000)
