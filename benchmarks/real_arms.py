@@ -93,7 +93,12 @@ def main() -> None:
     print('|' + '---|' * (head.count('|') - 1))
     total = Counter()
     for key in args.arms.split(','):
-        r = run_arm(key, args.moves)
+        try:
+            r = run_arm(key, args.moves)
+        except GeodesicPlannerError as err:      # the URDF itself is refused
+            print(f'| {key} | - | {args.moves} | - | 0 | URDF refused: {str(err)[:80]} | - | - | - | - |')
+            total.update(moves=args.moves)
+            continue
         reasons = ', '.join(f'{n} {k}' for k, n in r['reasons'].most_common()) or '-'  # type: ignore[attr-defined]
         methods = ', '.join(f'{n} {k}' for k, n in r['methods'].most_common())  # type: ignore[attr-defined]
         times = r['times']
