@@ -25,7 +25,7 @@ from .errors import BVPError, SingularMetricError
 from .kinematics import Chain
 from .metric import Metric
 from .path import JointPath, check_order, check_s
-from .polynomials import QuinticHermite
+from .polynomials import Interpolant, QuinticHermite
 
 
 class PathEquations(Protocol):
@@ -376,7 +376,7 @@ class GeodesicPath(JointPath):
     def __init__(self, equations: PathEquations, s_nodes: np.ndarray, q_nodes: np.ndarray,
                  v_nodes: np.ndarray, solver: SolverReport,
                  ik_start: object | None = None, ik_goal: object | None = None,
-                 a_nodes: np.ndarray | None = None, spline: QuinticHermite | None = None) -> None:
+                 a_nodes: np.ndarray | None = None, spline: Interpolant | None = None) -> None:
         self.equations = equations
         self.robot = equations.robot
         self.metric = equations.metric

@@ -5,9 +5,11 @@ Shared by the paths (:class:`QuinticHermite`) and the trajectory resampler
 """
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
-__all__ = ['QuinticHermite', 'evaluate_polynomials', 'quintic_coefficients', 'split_intervals']
+__all__ = ['Interpolant', 'QuinticHermite', 'evaluate_polynomials', 'quintic_coefficients', 'split_intervals']
 
 
 def quintic_coefficients(
@@ -60,6 +62,12 @@ def evaluate_polynomials(c: np.ndarray, t: np.ndarray, times: np.ndarray, order:
             acc = acc * tau + k * (k - 1) * cs[:, k]
     return (pos, vel, acc)[:order + 1]
 
+
+
+class Interpolant(Protocol):
+    """What a path needs of its interpolant: values and derivatives up to ``order`` (<= 2) at xs."""
+
+    def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]: ...
 
 
 class QuinticHermite:

@@ -75,19 +75,20 @@ class RedundantEquations:
 
     @staticmethod
     def rate(X: np.ndarray, T: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Directional derivative ``dJ[u] = Σ_j ∂J/∂q_j u_j`` of the geometric Jacobian, (N, 6, dof).
+        """Directional derivative ``dJ[u] = Σ_j ∂J/∂q_j u_j`` of the geometric Jacobian.
 
         Column k: the velocity row is ``Σ_j ∂²p/∂q_j∂q_k u_j`` (generator products, as in
         kinematics.py), the angular row ``(Σ_{j<k} u_j ω_j) × ω_k`` (a joint axis turns with the
-        joints before it).
+        joints before it). X (..., dof, 4, 4) and T (..., 4, 4) from ``robot.generators``, u
+        (..., dof), broadcast together -> (..., 6, dof).
         """
         W = X * u[..., None, None]
-        C = np.cumsum(W, axis=1)
-        M = C @ X + X @ (C[:, -1:] - C)
+        C = np.cumsum(W, axis=-3)
+        M = C @ X + X @ (C[..., -1:, :, :] - C)
         w = _vee(X[..., :3, :3])
         uw = w * u[..., None]
-        P = np.cumsum(uw, axis=1) - uw
-        return np.concatenate([_point(M, T[:, None]), cross(P, w)], axis=-1).transpose(0, 2, 1)
+        P = np.cumsum(uw, axis=-2) - uw
+        return np.swapaxes(np.concatenate([_point(M, T[..., None, :, :]), cross(P, w)], axis=-1), -1, -2)
 
     @staticmethod
     def velocity_term(X: np.ndarray, T: np.ndarray, v: np.ndarray) -> np.ndarray:

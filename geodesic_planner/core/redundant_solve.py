@@ -28,7 +28,6 @@ from .errors import BVPError, LimitError
 from .geodesic import GeodesicPath, SolverReport
 from .ik import IKSolution
 from .kinematics import Chain
-from .polynomials import QuinticHermite, split_intervals
 from .redundant import LineTask, RedundantEquations, pose_residual, skew_vee, solve6
 
 #: Chebyshev intervals of the first solve, and the most a solve may use.
@@ -46,9 +45,8 @@ PROJECT_TOL = 1e-14
 EXACT_NODE = 1e-12
 #: Smallest singular value of J (m per rad, or per m) at the nodes; below it the solve gives up.
 SINGULAR_SV = 1e-4
-#: Mesh refinement rounds, and the fraction of the tolerance a refined interval aims at.
-ROUNDS = 4
-AIM = 0.1
+#: The truncation error of the Chebyshev solution is held below this fraction of the tolerance.
+TAIL_FRACTION = 0.1
 
 
 class _NoPathError(Exception):
@@ -157,9 +155,8 @@ def _newton_step(eq: RedundantEquations, Q: np.ndarray, free: np.ndarray, target
     mu = np.einsum('fkn,fn->fk', sol[..., :-1], g)  # g = Jᵀ μ + N ν
     # N turns with q, by −Nᵀ dJ[δ]ᵀ μ along a step δ (up to O(ν) terms): δ = the task step t
     # (a constant term) and the null-space steps n_a (diagonal blocks of the Newton matrix).
-    dirs = np.concatenate([task_step[:, None], np.swapaxes(N, 1, 2)], axis=1).reshape(-1, robot.dof)
-    rates = eq.rate(np.repeat(X, r + 1, axis=0), np.repeat(T, r + 1, axis=0), dirs)
-    turn = np.einsum('fk,fakb->fab', mu, rates.reshape(-1, r + 1, 6, robot.dof) @ N[:, None])
+    dirs = np.concatenate([task_step[:, None], np.swapaxes(N, 1, 2)], axis=1)       # (F, 1 + r, dof)
+    turn = np.einsum('fk,fakb->fab', mu, eq.rate(X[:, None], T[:, None], dirs) @ N[:, None])
     nu = np.einsum('fnr,fn->fr', N, g) - turn[:, 0]
     A = np.einsum('fnr,gns->frgs', N, N) * Lf[:, None, :, None]
     diag = np.arange(free.size)
@@ -174,7 +171,7 @@ def _newton_step(eq: RedundantEquations, Q: np.ndarray, free: np.ndarray, target
 
 
 def solve_nodes(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np.ndarray, free_end: bool,
-                tail_tol: float, deadline: float | None = None) -> tuple[int, np.ndarray, int]:
+                tail_tol: float, deadline: float | None = None) -> tuple[int, np.ndarray, int, float]:
     """The least-motion path at Chebyshev-Lobatto nodes, truncation error below ``tail_tol``.
 
     Newton iterations (:func:`_newton_step`) on chebyshev(m)'s nodes; once the last Chebyshev
@@ -186,7 +183,8 @@ def solve_nodes(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np
             ``free_end`` (the goal is then chosen by transversality).
         tail_tol: bound on the last two Chebyshev coefficients, rad or m.
     Returns:
-        (m, Q, iterations): Q (m + 1, dof) at chebyshev(m)'s nodes; Newton iterations in all.
+        (m, Q, iterations, tail): Q (m + 1, dof) at chebyshev(m)'s nodes, the Newton iterations in
+        all, and the last two Chebyshev coefficients' size (rad or m).
     Raises:
         _NoPathError, _TimeUpError.
     """
@@ -212,10 +210,12 @@ def solve_nodes(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np
             gain = step / last**2
         ahead = min(step, gain * step**2)
         last, new_mesh = step, False
+        if ahead > 1e-4:                               # the tail means nothing yet
+            continue
         c = np.abs(chebyshev_coefficients(m, Q)).max(axis=1)
         tail = float(c[-2:].max())
         if ahead <= NEWTON_TOL and tail <= tail_tol:
-            return m, Q, it
+            return m, Q, it, tail
         if tail > tail_tol and tail > 100.0 * ahead:
             # |c_k| falls about geometrically: enough intervals for the tail to reach tail_tol.
             rate = max(np.log(max(float(c[m // 2 - 1:m // 2 + 1].max()), 1e-300) / tail) / (m - m // 2), 0.3)
@@ -227,10 +227,15 @@ def solve_nodes(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np
     raise _NoPathError(f'no convergence in {NEWTON_ITERATIONS} Newton iterations (last step {last:.3g})')
 
 
-def _node_data(eq: RedundantEquations, task: LineTask, s: np.ndarray, q: np.ndarray, dq: np.ndarray,
-               fixed_end: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The nodes q (N, dof) at s exactly on their poses (the start, and a fixed end, kept as they
-    are), q' with the exact task part (J q' = V, the null-space part of dq kept) and q'' = a(q, q')."""
+def _node_data(eq: RedundantEquations, task: LineTask, m: int, q: np.ndarray, fixed_end: bool
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The nodes q (m + 1, dof) of chebyshev(m) moved exactly onto their poses (the start, and a
+    fixed end, kept as they are), the polynomial's q' there and q'' = a(q, q').
+
+    Raises:
+        _NoPathError: a node is (nearly) singular.
+    """
+    s, D, _ = chebyshev(m)
     q_in = q
     q, X, T = project(eq.robot, q, task.poses(s))
     q[0] = q_in[0]
@@ -241,91 +246,91 @@ def _node_data(eq: RedundantEquations, task: LineTask, s: np.ndarray, q: np.ndar
     low = float(np.sqrt(max(np.linalg.eigvalsh(A)[:, 0].min(), 0.0)))
     if low < SINGULAR_SV:
         raise _NoPathError(f'the path passes near a singularity (smallest singular value of J {low:.3g})')
-    v = dq + np.einsum('nki,nk->ni', J, solve6(A, task.twist - np.einsum('nki,ni->nk', J, dq)))
-    mu = -solve6(A, eq.velocity_term(X, T, v))
-    return q, v, np.einsum('nki,nk->ni', J, mu)
+    v = D @ q
+    return q, v, -np.einsum('nki,nk->ni', J, solve6(A, eq.velocity_term(X, T, v)))
 
 
-def midpoint_error(eq: RedundantEquations, task: LineTask, s: np.ndarray, a: np.ndarray,
-                   spline: QuinticHermite) -> tuple[np.ndarray, np.ndarray]:
-    """Error of the quintic Hermite path through exact nodes, per mesh interval (s (m,), a (m, dof)).
+class ChebyshevPolynomial:
+    """The polynomial through values at chebyshev(m)'s nodes: values and s-derivatives anywhere.
 
-    As in ``geodesic.interpolation_error``, the spline's deviation from the solution through the
-    nodes is largest at the midpoint, ``e = h²/24 · (S''(mid) − a(S, S'))``. The error of an
-    interval is the largest of: e's tool distance ``|J e|`` in the paper's metric (m), its joint
-    distance ``|e|`` (rad or m), and the tool's actual pose error at the midpoint (forward
-    kinematics against line + slerp: m, rad).
-
-    Returns:
-        (error (m − 1,), relative residual ‖S'' − a‖∞ / (1 + ‖a‖∞) at the midpoints (m − 1,)).
+    Args:
+        m: intervals; Q: values at the nodes, (m + 1, dof).
     """
-    h = np.diff(s)
-    mid = s[:-1] + 0.5 * h
-    qm, vm, am_spline = spline(mid, order=2)
+
+    def __init__(self, m: int, Q: np.ndarray) -> None:
+        self.m = m
+        self._nodes, D, D2 = chebyshev(m)
+        self._Q = Q
+        rel = Q - Q[0]                     # relative to the start: a still path stays exactly still
+        self._values = (rel, D @ rel, D2 @ rel)
+
+    def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]:
+        """Values and derivatives up to ``order`` (<= 2) at xs (k,): list of (k, dof) arrays; at a
+        node, exactly its value."""
+        xs = np.asarray(xs, dtype=float)
+        B = interpolation_matrix(self.m, xs)
+        out = [B @ values for values in self._values[:min(order, 2) + 1]]
+        out[0] += self._Q[0]
+        k = np.searchsorted(self._nodes, xs).clip(0, self.m)
+        on = self._nodes[k] == xs
+        out[0][on] = self._Q[k[on]]
+        return out
+
+
+def midpoint_error(eq: RedundantEquations, task: LineTask, s: np.ndarray, path: ChebyshevPolynomial
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The tool's pose error (m and rad: the larger) and the relative residual of the equation,
+    ``‖P'' − a(P, P')‖∞ / (1 + ‖a‖∞)``, at the midpoints of the mesh s (m,), each (m − 1,).
+
+    Between Chebyshev nodes the interpolation error is largest about half-way (it follows the next
+    Chebyshev polynomial, whose extrema interlace the nodes).
+    """
+    mid = s[:-1] + 0.5 * np.diff(s)
+    qm, vm, am_poly = path(mid, order=2)
     _, T, J, _, mu = eq.terms(qm, vm)
     am = np.einsum('nki,nk->ni', J, mu)
-    diff = am_spline - am
-    e = (h * h / 24.0)[:, None] * diff
-    Je = np.einsum('nki,ni->nk', J, e)
-    wp, wo = eq.metric.position_weight, eq.metric.effective_orientation_weight
-    tool = np.sqrt(wp**2 * np.sum(Je[:, :3] ** 2, axis=1) + 2.0 * wo**2 * np.sum(Je[:, 3:] ** 2, axis=1))
     target = task.poses(mid)
     dp = np.linalg.norm(T[:, :3, 3] - target[:, :3, 3], axis=1)
     dr = np.linalg.norm(skew_vee(T[:, :3, :3] @ np.swapaxes(target[:, :3, :3], 1, 2)), axis=1)
-    err = np.max([tool, np.linalg.norm(e, axis=1), dp, dr], axis=0)
-    return err, np.abs(diff).max(axis=1) / (1.0 + np.abs(am).max(axis=1))
+    return np.maximum(dp, dr), np.abs(am_poly - am).max(axis=1) / (1.0 + np.abs(am).max(axis=1))
 
 
 def redundant_path(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np.ndarray, *, free_end: bool,
-                   path_tolerance: float, max_nodes: int, t0: float, deadline: float | None = None,
+                   path_tolerance: float, t0: float, deadline: float | None = None,
                    ik_start: IKSolution | None = None, ik_goal: IKSolution | None = None) -> GeodesicPath:
     """The least-motion path with the tool on ``task`` (module docstring, steps 1-2).
 
     Args:
         q_a, q_b: start and goal joints (dof,), on task's end poses; with ``free_end`` q_b only
             seeds the goal.
-        path_tolerance: m (and rad); max_nodes: mesh size limit; t0: perf_counter at the plan's
-            start (for the report); deadline: perf_counter time limit, or None.
+        path_tolerance: m (and rad); t0: perf_counter at the plan's start (for the report);
+            deadline: perf_counter time limit, or None.
     Raises:
         _NoPathError, _TimeUpError.
     """
     if np.array_equal(q_a, q_b) and not task.twist.any():
-        s = np.linspace(0.0, 1.0, 3)
-        q = np.repeat(q_a[None], 3, axis=0)
-        spline = QuinticHermite(s, q, 0.0 * q, 0.0 * q)
-        rep = SolverReport(0, 'start and goal are the same configuration', 0, 0.0, 3,
-                           (time.perf_counter() - t0) * 1e3, 0.0, 'redundant', 0.0)
-        return GeodesicPath(eq, s, q, 0.0 * q, rep, ik_start, ik_goal, 0.0 * q, spline)
-    m, Q, iterations = solve_nodes(eq, task, q_a, q_b, free_end, AIM * path_tolerance, deadline)
-    s, D, _ = chebyshev(m)
-    DQ = D @ Q
-    q, v, a = _node_data(eq, task, s, Q, DQ, not free_end)
-    for _ in range(ROUNDS):
-        checkpoint()
-        if deadline is not None and time.perf_counter() > deadline:
-            raise _TimeUpError
-        spline = QuinticHermite(s, q, v, a)
-        err, res = midpoint_error(eq, task, s, a, spline)
-        worst = float(err.max())
-        if worst <= path_tolerance:
-            rep = SolverReport(0, f'the least-motion path with the tool on line + slerp ({iterations} Newton '
-                               f'iterations on {m + 1} Chebyshev nodes; verified between {s.size} nodes)',
-                               iterations, float(res.max()), int(s.size), (time.perf_counter() - t0) * 1e3,
-                               0.0, 'redundant', worst)
-            return GeodesicPath(eq, s, q, v, rep, ik_start, ik_goal, a, spline)
-        # The error scales like h^6: split each interval once into the parts it needs.
-        parts = np.clip(np.ceil((err / (AIM * path_tolerance)) ** (1.0 / 6.0)), 1, 64).astype(int)
-        if s.size + int(parts.sum()) - parts.size > max_nodes:
-            break
-        s = split_intervals(s, parts)
-        B = interpolation_matrix(m, s)
-        q, v, a = _node_data(eq, task, s, B @ np.vstack([q[:1], Q[1:-1], q[-1:]]), B @ DQ, True)
-    raise _NoPathError(f'the path is not within {path_tolerance:g} of the solution after {ROUNDS} mesh rounds')
+        m, q, iterations, tail = 2, np.repeat(q_a[None], 3, axis=0), 0, 0.0
+        v = a = 0.0 * q
+    else:
+        m, Q, iterations, tail = solve_nodes(eq, task, q_a, q_b, free_end, TAIL_FRACTION * path_tolerance,
+                                             deadline)
+        q, v, a = _node_data(eq, task, m, Q, not free_end)
+    s = chebyshev(m)[0]
+    path = ChebyshevPolynomial(m, q)
+    err, res = midpoint_error(eq, task, s, path)
+    worst = max(float(err.max()), tail)
+    if not worst <= path_tolerance:
+        raise _NoPathError(f'the path is {worst:.3g} from the solution (tolerance {path_tolerance:g})')
+    rep = SolverReport(0, f'the least-motion path with the tool on line + slerp ({iterations} Newton iterations '
+                       f'on {m + 1} Chebyshev nodes)', iterations, float(res.max()), m + 1,
+                       (time.perf_counter() - t0) * 1e3, 0.0, 'redundant', worst)
+    # q' at the nodes: the polynomial's (its task part J q' = V to the tolerance), q'' the equation's.
+    return GeodesicPath(eq, s, q, v, rep, ik_start, ik_goal, a, path)
 
 
 def plan_redundant(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np.ndarray,
                    ik_a: IKSolution | None, ik_b: IKSolution | None, *, t0: float, path_tolerance: float,
-                   max_nodes: int, time_limit: float | None,
+                   time_limit: float | None,
                    check_limits: Callable[[GeodesicPath], None] | None) -> GeodesicPath | None:
     """The planner's least-motion path (more than 6 joints), or None when it cannot be found.
 
@@ -339,8 +344,8 @@ def plan_redundant(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b:
     deadline = None if time_limit is None else time.perf_counter() + time_limit
     for free_end in (True, False) if ik_b is not None else (False,):
         try:
-            path = redundant_path(eq, task, q_a, q_b, free_end=free_end, path_tolerance=path_tolerance,
-                                  max_nodes=max_nodes, t0=t0, deadline=deadline, ik_start=ik_a, ik_goal=ik_b)
+            path = redundant_path(eq, task, q_a, q_b, free_end=free_end, path_tolerance=path_tolerance, t0=t0,
+                                  deadline=deadline, ik_start=ik_a, ik_goal=ik_b)
         except (_NoPathError, np.linalg.LinAlgError):   # LinAlgError: J singular at a node
             continue
         except _TimeUpError:
