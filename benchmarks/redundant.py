@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """7-joint arms against the 6-joint ur5e: line and slerp errors and plan times, in one run.
 
-Run:  .venv/bin/python benchmarks/redundant.py [--moves 12] [--repeats 9] [--markdown FILE]
+Run:  .venv/bin/python benchmarks/redundant.py [--moves 12] [--repeats 9] [--markdown FILE ...]
 
 Per arm, random moves as issue 21 drew them: a start configuration drawn within the joint limits
 (10 % margin) away from singularities (smallest singular value of the geometric Jacobian >= 0.05
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import platform
 import sys
 import time
 
@@ -30,9 +31,20 @@ import numpy as np
 from geodesic_planner import GeodesicPlanner, GeodesicPlannerError, load_robot
 from geodesic_planner.core.kinematics import REVOLUTE, chain_from_dh
 from geodesic_planner.core.transforms import line_slerp, pose_error
+from markdown_block import replace_block
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PI = np.pi
+
+
+def machine() -> str:
+    cpu = platform.machine()
+    try:
+        with open('/proc/cpuinfo', encoding='utf-8') as fh:
+            cpu = next((line.split(':', 1)[1].strip() for line in fh if line.startswith('model name')), cpu)
+    except OSError:
+        pass
+    return f'{cpu}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}'
 
 
 def xarm7_like():
@@ -78,7 +90,8 @@ def main(argv=None) -> int:
     ap.add_argument('--moves', type=int, default=12)
     ap.add_argument('--repeats', type=int, default=9)
     ap.add_argument('--seed', type=int, default=21)
-    ap.add_argument('--markdown', help='also write the table to this file')
+    ap.add_argument('--markdown', action='append', help='also write the table into this Markdown file '
+                    '(between its markers; may be repeated)')
     args = ap.parse_args(argv)
     robots = arms()
     s = np.linspace(0.0, 1.0, 2001)
@@ -126,11 +139,13 @@ def main(argv=None) -> int:
         for f in fails:
             print(f'  {key[0]} {label}: {f}', file=sys.stderr)
     table = '\n'.join(lines)
-    print(f'{args.moves} moves per arm, {args.repeats} rounds; load average {os.getloadavg()[0]:.2f}\n')
+    head = (f'`.venv/bin/python benchmarks/redundant.py --moves {args.moves} --repeats {args.repeats}`: '
+            f'{args.moves} moves per arm, {args.repeats} rounds, {machine()}.')
+    print(head + '\n')
     print(table)
     if args.markdown:
-        with open(args.markdown, 'w', encoding='utf-8') as fh:
-            fh.write(table + '\n')
+        for path in args.markdown:
+            replace_block(path, 'benchmarks/redundant.py', f'{head}\n\n{table}')
     return 0
 
 

@@ -100,7 +100,7 @@ class GeodesicPlanner:
         nodes: initial collocation mesh size.
         tol: collocation tolerance (relative residual of solve_bvp).
         path_tolerance: largest metric distance (m) allowed between the returned path and the
-            exact geodesic when that is the pulled-back task-space geodesic (non-redundant arms).
+            exact pulled-back line + slerp (6 joints; > 6: tool pose error, m and rad).
         max_nodes: mesh size limit (bounds solve time).
         ik_tolerance: allowed distance between a requested pose and the nearest reachable one.
         time_limit: wall-clock budget of one geodesic solve, s (None: unbounded).

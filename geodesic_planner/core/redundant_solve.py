@@ -6,12 +6,12 @@
    along its self-motion manifold) plus a null-space step ``N α`` that solves the linearised
    discrete Euler-Lagrange equations ``Nᵀ q''(s_j) = 0`` (and ``Nᵀ q'(1) = 0`` at a free goal),
    the turning of N with q included, so they converge quadratically. m grows until the last
-   Chebyshev coefficients (the truncation error) are below the tolerance.
-2. :func:`redundant_path`: at each node q' gets the exact task part (``J q' = V``) and q'' = a(q, q'),
-   so the tool's pose, twist and its rate match line + slerp at every node. The quintic Hermite
-   path through them is checked at every interval's midpoint (:func:`midpoint_error`: its
-   distance from the solution, and the tool's pose error by forward kinematics);
-   intervals above the tolerance are split, with the new nodes taken from the polynomial.
+   Chebyshev coefficients (the truncation error) are below a tenth of the tolerance.
+2. :func:`redundant_path`: the nodes are put exactly on their poses, and the path is the
+   polynomial through them (:class:`ChebyshevPolynomial`: q and q' anywhere, exact at the nodes;
+   q'' and q''' from the equation, as for every GeodesicPath). It is checked at every interval's
+   midpoint, where the interpolation error peaks (:func:`midpoint_error`: the tool's pose by
+   forward kinematics against line + slerp, and the residual of the equation).
 3. :func:`plan_redundant`: the planner's entry (free goal first, then the IK's goal).
 """
 from __future__ import annotations
@@ -38,8 +38,8 @@ MAX_CHEBYSHEV_INTERVALS = 96
 NEWTON_ITERATIONS = 20
 NEWTON_TOL = 1e-12
 MAX_STEP = 0.3
-#: Minimal-norm IK of inserted nodes: iterations, the pose error (m, rad) that ends them, and the
-#: largest error a node may keep (beyond it the line cannot be followed this way).
+#: Minimal-norm IK that puts the solved nodes on their poses: iterations, the pose error (m, rad)
+#: that ends them, and the largest error a node may keep (beyond it the line is not followed).
 PROJECT_ITERATIONS = 8
 PROJECT_TOL = 1e-14
 EXACT_NODE = 1e-12
