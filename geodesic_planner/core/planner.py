@@ -342,7 +342,8 @@ class GeodesicPlanner:
             check_long_way(self.robot, q_a, q_b, 'the goal pose')
         if self.redundant is not None and method == 'auto':
             redundant = plan_redundant(self.redundant, LineTask(*self._task_line(q_a, q_b)), q_a, q_b, ik_a, ik_b,
-                                       t0=t0, path_tolerance=self.path_tolerance, time_limit=self.time_limit,
+                                       t0=t0, path_tolerance=self.path_tolerance, max_nodes=self.max_nodes,
+                                       time_limit=self.time_limit,
                                        check_limits=self._check_path_limits if self.check_limits else None)
             if redundant is not None:
                 return redundant

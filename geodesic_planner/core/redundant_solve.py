@@ -171,7 +171,8 @@ def _newton_step(eq: RedundantEquations, Q: np.ndarray, free: np.ndarray, target
 
 
 def solve_nodes(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np.ndarray, free_end: bool,
-                tail_tol: float, deadline: float | None = None) -> tuple[int, np.ndarray, int, float]:
+                tail_tol: float, deadline: float | None = None, max_intervals: int = MAX_CHEBYSHEV_INTERVALS
+                ) -> tuple[int, np.ndarray, int, float]:
     """The least-motion path at Chebyshev-Lobatto nodes, truncation error below ``tail_tol``.
 
     Newton iterations (:func:`_newton_step`) on chebyshev(m)'s nodes; once the last Chebyshev
@@ -182,13 +183,15 @@ def solve_nodes(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np
         q_a: start joints (dof,); q_b: goal joints (dof,), only the initial guess of the goal when
             ``free_end`` (the goal is then chosen by transversality).
         tail_tol: bound on the last two Chebyshev coefficients, rad or m.
+        max_intervals: the most Chebyshev intervals allowed (at most MAX_CHEBYSHEV_INTERVALS).
     Returns:
         (m, Q, iterations, tail): Q (m + 1, dof) at chebyshev(m)'s nodes, the Newton iterations in
         all, and the last two Chebyshev coefficients' size (rad or m).
     Raises:
         _NoPathError, _TimeUpError.
     """
-    m = CHEBYSHEV_INTERVALS
+    max_intervals = min(max_intervals, MAX_CHEBYSHEV_INTERVALS)
+    m = min(CHEBYSHEV_INTERVALS, max_intervals)
     Q = q_a + chebyshev(m)[0][:, None] * (q_b - q_a)
     Q[0], Q[-1] = q_a, q_b
     last = gain = np.inf
@@ -220,7 +223,7 @@ def solve_nodes(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np
             # |c_k| falls about geometrically: enough intervals for the tail to reach tail_tol.
             rate = max(np.log(max(float(c[m // 2 - 1:m // 2 + 1].max()), 1e-300) / tail) / (m - m // 2), 0.3)
             m_next = int(np.clip(m + np.ceil(np.log(tail / tail_tol) / rate) + 2, m + 4, 2 * m))
-            if m_next > MAX_CHEBYSHEV_INTERVALS:
+            if m_next > max_intervals:
                 raise _NoPathError(f'not resolved by {m} Chebyshev intervals')
             Q = interpolation_matrix(m, chebyshev(m_next)[0]) @ Q
             m, new_mesh = m_next, True
@@ -296,7 +299,7 @@ def midpoint_error(eq: RedundantEquations, task: LineTask, s: np.ndarray, path: 
 
 
 def redundant_path(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np.ndarray, *, free_end: bool,
-                   path_tolerance: float, t0: float, deadline: float | None = None,
+                   path_tolerance: float, t0: float, deadline: float | None = None, max_nodes: int = 2000,
                    ik_start: IKSolution | None = None, ik_goal: IKSolution | None = None) -> GeodesicPath:
     """The least-motion path with the tool on ``task`` (module docstring, steps 1-2).
 
@@ -304,7 +307,7 @@ def redundant_path(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b:
         q_a, q_b: start and goal joints (dof,), on task's end poses; with ``free_end`` q_b only
             seeds the goal.
         path_tolerance: m (and rad); t0: perf_counter at the plan's start (for the report);
-            deadline: perf_counter time limit, or None.
+            deadline: perf_counter time limit, or None; max_nodes: the most nodes (>= 3).
     Raises:
         _NoPathError, _TimeUpError.
     """
@@ -313,7 +316,7 @@ def redundant_path(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b:
         v = a = 0.0 * q
     else:
         m, Q, iterations, tail = solve_nodes(eq, task, q_a, q_b, free_end, TAIL_FRACTION * path_tolerance,
-                                             deadline)
+                                             deadline, max_nodes - 1)
         q, v, a = _node_data(eq, task, m, Q, not free_end)
     s = chebyshev(m)[0]
     path = ChebyshevPolynomial(m, q)
@@ -330,7 +333,7 @@ def redundant_path(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b:
 
 def plan_redundant(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np.ndarray,
                    ik_a: IKSolution | None, ik_b: IKSolution | None, *, t0: float, path_tolerance: float,
-                   time_limit: float | None,
+                   max_nodes: int, time_limit: float | None,
                    check_limits: Callable[[GeodesicPath], None] | None) -> GeodesicPath | None:
     """The planner's least-motion path (more than 6 joints), or None when it cannot be found.
 
@@ -345,7 +348,7 @@ def plan_redundant(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b:
     for free_end in (True, False) if ik_b is not None else (False,):
         try:
             path = redundant_path(eq, task, q_a, q_b, free_end=free_end, path_tolerance=path_tolerance, t0=t0,
-                                  deadline=deadline, ik_start=ik_a, ik_goal=ik_b)
+                                  deadline=deadline, max_nodes=max_nodes, ik_start=ik_a, ik_goal=ik_b)
         except (_NoPathError, np.linalg.LinAlgError):   # LinAlgError: J singular at a node
             continue
         except _TimeUpError:

@@ -3,8 +3,8 @@ joint motion (docs/maths.md#redundant-arms).
 
 Every check is against computations independent of the library: the arms' forward kinematics written
 out in test/urdf_util.py (Panda and xArm 7 from their published modified DH, the iiwa-like URDF from
-its DH table), Jacobians by finite differences of that FK, IK by Newton's method on it, and energies
-by quadrature of finite differences. Moves: a start drawn within the limits away from singularities
+its DH table, an 8-joint arm: the xArm 7 with one more wrist joint), Jacobians by finite differences
+of that FK, IK by Newton's method on it, and energies by quadrature of finite differences. Moves: a start drawn within the limits away from singularities
 and the goal pose of a nearby configuration (issue 21), kept when an IK continuation of the oracle
 follows its line + slerp.
 """
@@ -35,10 +35,19 @@ def xarm7():
                          upper=U.XARM7_UPPER, max_velocity=np.pi)
 
 
+#: An 8-joint arm (two null-space directions): the xArm 7 with one more wrist joint.
+ROWS8 = [*U.XARM7_MDH, (np.pi / 2, 0.0, 0.08, 0.0)]
+
+
+def eight_joints():
+    return chain_from_dh('arm8', ROWS8, [REVOLUTE] * 8, modified=True, lower=[-3.0] * 8, upper=[3.0] * 8)
+
+
 ARMS = {
     'panda': (lambda: load_robot('panda'), U.panda_fk_batch),
     'iiwa_like_7r_urdf': (lambda: load_robot(os.path.join(DATA, 'iiwa_like_7r.urdf')), U.arm_fk_batch(U.IIWA)),
     'xarm7_like': (xarm7, U.xarm7_fk_batch),
+    'eight_joints': (eight_joints, lambda qs: U.dh_fk_batched(ROWS8, ['revolute'] * 8, qs, modified=True)),
 }
 
 
