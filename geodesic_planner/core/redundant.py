@@ -70,25 +70,29 @@ class RedundantEquations:
     @staticmethod
     def jacobian(X: np.ndarray, T: np.ndarray) -> np.ndarray:
         """Geometric Jacobian (N, 6, dof) from ``robot.generators`` (base frame, rows [v; ω])."""
-        v = np.einsum('nkab,nb->nka', X[..., :3, :3], T[:, :3, 3]) + X[..., :3, 3]
+        v = (X[..., :3, :3] @ T[:, None, :3, 3:])[..., 0] + X[..., :3, 3]
         return np.concatenate([v, _vee(X[..., :3, :3])], axis=-1).transpose(0, 2, 1)
 
     @staticmethod
     def rate(X: np.ndarray, T: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Directional derivative ``dJ[u] = Σ_j ∂J/∂q_j u_j`` of the geometric Jacobian.
 
-        Column k: the velocity row is ``Σ_j ∂²p/∂q_j∂q_k u_j`` (generator products, as in
-        kinematics.py), the angular row ``(Σ_{j<k} u_j ω_j) × ω_k`` (a joint axis turns with the
-        joints before it). X (..., dof, 4, 4) and T (..., 4, 4) from ``robot.generators``, u
-        (..., dof), broadcast together -> (..., 6, dof).
+        Joint k's spatial twist ξ_k = (ω_k, v_k) (``robot.generators``: ``X_k = [[ω_k^, v_k], [0, 0]]``)
+        turns with the joints before it: ``dξ_k = [Σ_{j<k} ξ_j u_j, ξ_k]`` (Lie bracket
+        ``[(a, b), (ω, v)] = (a × ω, a × v − ω × b)``), and J's velocity row is ``ω_k × p + v_k``
+        with ``dp = J_v u``. X (..., dof, 4, 4) and T (..., 4, 4) broadcast with u (..., dof)
+        -> (..., 6, dof).
         """
-        W = X * u[..., None, None]
-        C = np.cumsum(W, axis=-3)
-        M = C @ X + X @ (C[..., -1:, :, :] - C)
-        w = _vee(X[..., :3, :3])
-        uw = w * u[..., None]
-        P = np.cumsum(uw, axis=-2) - uw
-        return np.swapaxes(np.concatenate([_point(M, T[..., None, :, :]), cross(P, w)], axis=-1), -1, -2)
+        Wm = X * u[..., None, None]
+        C = np.cumsum(Wm, axis=-3)
+        P = (C - Wm)[..., :3, :]                               # [hat(Σ_{j<k} ω_j u_j), Σ_{j<k} v_j u_j]
+        total = C[..., -1:, :3, :]
+        p = T[..., None, :3, 3:]
+        dw = P[..., :3] @ _vee(X[..., :3, :3])[..., None]
+        dp = total[..., :3] @ p + total[..., 3:]
+        dv = (P[..., :3] @ X[..., :3, 3:] - X[..., :3, :3] @ P[..., 3:] + X[..., :3, :3] @ dp
+              + cross(dw[..., 0], p[..., 0])[..., None])
+        return np.swapaxes(np.concatenate([dv, dw], axis=-2)[..., 0], -1, -2)
 
     @staticmethod
     def velocity_term(X: np.ndarray, T: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -123,8 +127,9 @@ class RedundantEquations:
         along q' (``p''' = (6 c3 T)_p``, ``(ω'')^ = skew(6 c3 − 2 c2 c1)`` for the rotation blocks).
         """
         v = np.asarray(v, dtype=float)
-        X, T, J, A, mu = self.terms(q, v)
-        a = np.einsum('nki,nk->ni', J, mu)
+        X, T = self.robot.generators(np.ascontiguousarray(q, dtype=float))
+        J = self.jacobian(X, T)
+        A = J @ J.transpose(0, 2, 1)
         W = X * v[..., None, None]
         c1 = np.zeros(T.shape)
         c2 = np.zeros(T.shape)
@@ -135,6 +140,9 @@ class RedundantEquations:
             c3 = c3 + c2 @ Wk + c1 @ Wk2 / 2.0 + Wk2 @ Wk / 6.0
             c2 = c2 + c1 @ Wk + Wk2 / 2.0
             c1 = c1 + Wk
+        # J̇ q' from c2 (the second-order term is 2 c2 T), then q'' = Jᵀ μ.
+        mu = -solve6(A, np.concatenate([_point(2.0 * c2, T), skew_vee(2.0 * c2[:, :3, :3])], axis=-1))
+        a = np.einsum('nki,nk->ni', J, mu)
         rot3 = 6.0 * c3[:, :3, :3] - 2.0 * c2[:, :3, :3] @ c1[:, :3, :3]
         third = np.concatenate([_point(6.0 * c3, T), skew_vee(rot3)], axis=-1)
         Jd = self.rate(X, T, v)

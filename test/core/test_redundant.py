@@ -4,9 +4,9 @@ joint motion (docs/maths.md#redundant-arms).
 Every check is against computations independent of the library: the arms' forward kinematics written
 out in test/urdf_util.py (Panda and xArm 7 from their published modified DH, the iiwa-like URDF from
 its DH table, an 8-joint arm: the xArm 7 with one more wrist joint), Jacobians by finite differences
-of that FK, IK by Newton's method on it, and energies by quadrature of finite differences. Moves: a start drawn within the limits away from singularities
-and the goal pose of a nearby configuration (issue 21), kept when an IK continuation of the oracle
-follows its line + slerp.
+of that FK, IK by Newton's method on it, and energies by quadrature of finite differences. Moves: a
+start drawn within the limits away from singularities and the goal pose of a nearby configuration
+(issue 21), kept when an IK continuation of the oracle follows its line + slerp.
 """
 from __future__ import annotations
 
