@@ -28,6 +28,7 @@ from .kinematics import Chain
 from .metric import Metric
 from .transforms import line_slerp, so3_log
 
+
 def _vee(M: np.ndarray) -> np.ndarray:
     return np.stack([M[..., 2, 1], M[..., 0, 2], M[..., 1, 0]], axis=-1)
 

@@ -59,6 +59,7 @@ class _TimeUpError(Exception):
 
 @functools.lru_cache(maxsize=16)
 def _coefficient_matrix(m: int) -> np.ndarray:
+    """Matrix (m + 1, m + 1): values at chebyshev(m)'s nodes -> Chebyshev coefficients."""
     j = np.arange(m + 1)
     half = np.where((j == 0) | (j == m), 0.5, 1.0)
     out = np.cos(np.pi * np.outer(j, j) / m) * half[None, :] * half[:, None] * (2.0 / m)

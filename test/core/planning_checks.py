@@ -197,7 +197,7 @@ def geodesic_defect(planner: GeodesicPlanner, path: Any, s: np.ndarray, h: float
 LEAST_MOTION_TOL = 1e-4
 
 
-def least_motion_defect(path: Any, s: np.ndarray, h: float = 1e-3) -> tuple[float, float]:
+def least_motion_defect(path: Any, s: np.ndarray, h: float = 1e-4) -> tuple[float, float]:
     """Largest relative residuals of a least-motion piece (method 'redundant', docs/maths.md#redundant-arms),
     from finite differences of the path's positions and of fk (not the library's derivatives).
 
@@ -212,14 +212,17 @@ def least_motion_defect(path: Any, s: np.ndarray, h: float = 1e-3) -> tuple[floa
     q1 = (q_p - q_m) / (2 * h)
     q2 = (q_p - 2 * q_0 + q_m) / h**2
     null = np.linalg.svd(fd_jacobian12(robot, q_0))[2][:, 6:, :]      # J₁₂ has the geometric J's null space
-    el = np.linalg.norm(np.einsum('nri,ni->nr', null, q2), axis=1) / (
-        np.linalg.norm(q2, axis=1) + np.sum(q1 * q1, axis=1) + 1e-12)
+    # Less the round-off of the second differences (4 u |q| / h²), against |q''| + |q'|².
+    floor = 4.5e-16 * np.maximum(1.0, np.abs(q_0).max(axis=1)) / h**2
+    el = np.maximum(np.linalg.norm(np.einsum('nri,ni->nr', null, q2), axis=1) - floor, 0.0) / (
+        np.linalg.norm(q2, axis=1) + np.sum(q1 * q1, axis=1) + 1e-300)
     T_m, T_0, T_p = (robot.fk(q) for q in (q_m, q_0, q_p))
     W = (T_p[:, :3, :3] - T_m[:, :3, :3]) / (2 * h) @ np.swapaxes(T_0[:, :3, :3], 1, 2)
     w = 0.5 * np.stack([W[:, 2, 1] - W[:, 1, 2], W[:, 0, 2] - W[:, 2, 0], W[:, 1, 0] - W[:, 0, 1]], axis=1)
     V = np.concatenate([(T_p[:, :3, 3] - T_m[:, :3, 3]) / (2 * h), w], axis=1)
     mean = V.mean(axis=0)
-    twist = np.abs(V - mean).max() / max(float(np.linalg.norm(mean)), 1e-12)
+    twist = max(np.abs(V - mean).max() - 4.5e-16 * max(1.0, np.abs(T_0).max()) / h, 0.0) / max(
+        float(np.linalg.norm(mean)), 1e-300)
     return float(el.max(initial=0.0)), float(twist)
 
 
