@@ -78,6 +78,30 @@ class LimitError(GeodesicPlannerError):
     """Joint limits (position, velocity, acceleration) are invalid or cannot be met."""
 
 
+class PathFollowError(GeodesicPlannerError):
+    """The tool's line + slerp cannot be followed on one branch: the message says why and where.
+
+    Raised for a singularity on the way (the joints would have to flip); the subclasses below
+    for a joint limit and for a pose out of reach.
+
+    Attributes:
+        fraction: the part of the line that can be followed from the start, in [0, 1] (as
+            MoveIt's GetCartesianPath reports it).
+    """
+
+    def __init__(self, message: str, *, fraction: float) -> None:
+        super().__init__(message)
+        self.fraction = fraction
+
+
+class LineLimitError(PathFollowError, LimitError):
+    """The line's branch crosses a joint's position limit (names the joint and the place)."""
+
+
+class LineUnreachableError(PathFollowError, IKError):
+    """The line leaves what the start's branch can reach (names the place)."""
+
+
 class BagError(GeodesicPlannerError):
     """A bag cannot be read or written."""
 

@@ -138,6 +138,7 @@ def gauss_newton_batch(
     max_iterations: int = 10,
     residual_tol: float = 1e-12,
     max_step: float | None = None,
+    within_limits: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Batched undamped Gauss-Newton on the weighted embedding error, for seeds near a solution.
 
@@ -151,6 +152,8 @@ def gauss_newton_batch(
         residual_tol: stop when every weighted embedding residual is below this (m).
         max_step: largest joint change per step (rad or m); longer steps are shortened (keeps a
             far seed on its own branch). None: full steps.
+        within_limits: keep every iterate within the joint limits (False: let a solution beyond
+            them be found, to tell where a path would cross them).
     Returns:
         (q, residual, X, T): q (N, dof); residual (N,) at q; ``robot.generators(q)`` at q.
     """
@@ -177,7 +180,9 @@ def gauss_newton_batch(
         dq = np.linalg.solve(A, g)[..., 0]
         if max_step is not None:
             dq *= np.minimum(1.0, max_step / np.maximum(np.abs(dq).max(axis=1, keepdims=True), 1e-300))
-        q = np.minimum(np.maximum(q - dq, robot.lower), robot.upper)
+        q = q - dq
+        if within_limits:
+            q = np.minimum(np.maximum(q, robot.lower), robot.upper)
     return q, np.sqrt(cost), X, T
 
 

@@ -27,12 +27,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .cancel import checkpoint
-from .errors import BVPError, LimitError, RequestError
+from .continuation import LineFollow, follow_line
+from .errors import BVPError, LimitError, LineLimitError, RequestError, SingularMetricError
 from .geodesic import (GeodesicEquations, GeodesicPath, SolverReport, collocation_rms, interpolation_error,
                        solve_geodesic_bvp)
 from .ik import IKSolution, dls_batch, gauss_newton_batch, nearest_branch, nearest_turn, solve_ik
 from .kinematics import Chain, embed12
-from .long_way import check_long_way
+from .long_way import LONG_WAY_EXCESS, check_long_way, long_way_excess
 from .metric import DEFAULT_REDUNDANT_EPSILON, Metric
 from .polynomials import QuinticHermite, split_intervals
 from .redundant import LineTask, RedundantEquations
@@ -65,8 +66,12 @@ PRESIZE_MARGIN = 0.5
 #: Default largest distance (m, in the metric) between the returned path and the exact geodesic
 #: when the geodesic is the pulled-back task-space one (the issue asks for <= 1e-8 m).
 DEFAULT_PATH_TOLERANCE = 1e-9
-#: Mesh refinement rounds of the pulled-back path before falling back to collocation.
-PULLBACK_ROUNDS = 4
+#: Mesh refinement rounds of the pulled-back path before falling back to collocation (most
+#: paths need one or two; a line close to a singularity, up to five).
+PULLBACK_ROUNDS = 6
+#: Largest distance of a mesh node's IK solution from its seed on a followed branch, rad or m
+#: (the continuation's samples are at most 0.1 apart: beyond this the node left the branch).
+MAX_SEED_DRIFT = 0.2
 #: A refined interval aims at this fraction of path_tolerance.
 PULLBACK_AIM = 0.1
 #: Values of ``method``: 'auto' (the pull-back where it applies, else collocation) or
@@ -232,13 +237,16 @@ class GeodesicPlanner:
         return T_a, T_b, w_body
 
     def initial_guess(self, q_a: np.ndarray, q_b: np.ndarray, s: np.ndarray,
-                      seeds: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
+                      seeds: np.ndarray | None = None, *, on_branch: bool = False
+                      ) -> tuple[np.ndarray, np.ndarray, bool]:
         """Initial q, q' at the mesh s: task-space line + slerp pulled back by batched IK.
 
         Returns (q, q', exact): ``exact`` is True when the line + slerp is reachable at every node
         and ε = 0; then the guess is the geodesic itself (an ambient geodesic lying in the reachable
         set is a geodesic of the pull-back metric). Falls back to joint-space linear interpolation
-        (exact = False) if the pull-back jumps branches.
+        (exact = False) if the pull-back jumps branches: a node step far beyond the joint line's,
+        or, with ``on_branch`` (``seeds`` sampled from one continuous branch, e.g. the line
+        followed by continuation), a node that left its seed by more than MAX_SEED_DRIFT.
         """
         robot = self.robot
         q_lin = q_a + s[:, None] * (q_b - q_a)
@@ -264,8 +272,11 @@ class GeodesicPlanner:
                                     orientation_weight=wo or 1.0, max_iterations=15)
             X, T = robot.generators(q_g)
         q_g[0], q_g[-1] = q_a, q_b
-        step = np.abs(np.diff(q_g, axis=0)).max()
-        if not np.all(np.isfinite(q_g)) or step > 3.0 * np.abs(np.diff(q_lin, axis=0)).max() + 0.05:
+        if on_branch:
+            jump = np.abs(q_g - seeds).max() > MAX_SEED_DRIFT
+        else:
+            jump = np.abs(np.diff(q_g, axis=0)).max() > 3.0 * np.abs(np.diff(q_lin, axis=0)).max() + 0.05
+        if not np.all(np.isfinite(q_g)) or jump:
             return q_lin, v_lin, False
         exact = bool(np.all(res < EXACT_GUESS_RESIDUAL)) and self.metric.epsilon == 0.0
         # q' = least-squares pull-back of the task velocity (exact on the task geodesic).
@@ -329,7 +340,16 @@ class GeodesicPlanner:
         q = path.evaluate(s, order=0)[0]
         out = (q < r.lower - LIMIT_SLACK) | (q > r.upper + LIMIT_SLACK)
         if np.any(out):
-            k, i = (int(x) for x in np.argwhere(out)[0])
+            order = np.argsort(s)
+            k = int(order[np.argmax(np.any(out[order], axis=1))])      # the first place out
+            i = int(np.argmax(out[k]))
+            if path.solver.method == 'pullback':    # the path is the line: say where, as a fraction
+                bound = r.upper[i] if q[k, i] > r.upper[i] else r.lower[i]
+                x, y, z = self.robot.fk(q[k])[:3, 3]
+                raise LineLimitError(
+                    f'the straight line cannot be followed by robot {r.name!r}: joint {r.joint_names[i]!r} '
+                    f'would pass its limit {bound:.6g} at {100.0 * s[k]:.3g} % of the way (tool at '
+                    f'{x:.4f}, {y:.4f}, {z:.4f} m); followable fraction {s[k]:.4f}', fraction=float(s[k]))
             raise LimitError(f'the geodesic leaves the joint limits: joint {r.joint_names[i]!r} reaches '
                              f'{q[k, i]:.6g} at s = {s[k]:.3f} (limits [{r.lower[i]:.6g}, {r.upper[i]:.6g}])')
 
@@ -356,32 +376,71 @@ class GeodesicPlanner:
             exact = False
         else:
             q_g, v_g, exact = self.initial_guess(q_a, q_b, s)
+        line_error = follow = None
+        if not exact and method == 'auto' and self._line_is_geodesic():
+            # The mesh seeds missed the line's branch, or the line cannot be followed: walk it.
+            follow = self._follow_line(q_a, q_b)
+            line_error = follow.error
+            if line_error is None and self._reaches(follow.q[-1], q_a, q_b, ik_b is not None):
+                if ik_b is not None:     # a goal pose: the configuration the line leads to
+                    q_b = snap_same(q_a, follow.q[-1])
+                    ik_b = dataclasses.replace(ik_b, q=q_b)
+                q_g, v_g, exact = self.initial_guess(q_a, q_b, s, follow.seeds(s), on_branch=True)
         if exact:
-            path = self._pullback_path(q_a, q_b, s, q_g, v_g, ik_a, ik_b, t0)
+            path = self._pullback_path(q_a, q_b, s, q_g, v_g, ik_a, ik_b, t0, follow)
             if path is not None:
                 if self.check_limits:
                     self._check_path_limits(path)
                 return path
             s, q_g, v_g = self._presize_mesh(q_a, q_b, s, q_g, v_g)
-        s_sol, q_sol, v_sol, a_sol, rep = solve_geodesic_bvp(
-            self.equations, q_a, q_b, s, q_g, v_g, tol=self.tol, max_nodes=self.max_nodes,
-            time_limit=self.time_limit)
-        rep = SolverReport(rep.status, rep.message, rep.iterations, rep.max_residual, rep.mesh_size,
-                           (time.perf_counter() - t0) * 1e3, rep.bc_residual)
-        path = GeodesicPath(self.equations, s_sol, q_sol, v_sol, rep, ik_a, ik_b, a_sol)
-        if self.check_limits:
-            self._check_path_limits(path)
+        try:
+            s_sol, q_sol, v_sol, a_sol, rep = solve_geodesic_bvp(
+                self.equations, q_a, q_b, s, q_g, v_g, tol=self.tol, max_nodes=self.max_nodes,
+                time_limit=self.time_limit)
+            rep = SolverReport(rep.status, rep.message, rep.iterations, rep.max_residual, rep.mesh_size,
+                               (time.perf_counter() - t0) * 1e3, rep.bc_residual)
+            path = GeodesicPath(self.equations, s_sol, q_sol, v_sol, rep, ik_a, ik_b, a_sol)
+            if self.check_limits:
+                self._check_path_limits(path)
+        except (BVPError, SingularMetricError, LimitError) as err:
+            if line_error is not None:       # the line's reason and place, not the solver's words
+                raise line_error from err
+            raise
         return path
+
+    def _line_is_geodesic(self) -> bool:
+        """True where the geodesic between two poses is the line + slerp whenever it can be
+        followed: the paper's metric without the ε term, on an arm that can hold any pose (6 or
+        more joints; with fewer, the line + slerp is generally out of reach and the geodesic bows
+        off it, as on the RRPP)."""
+        return self.metric.kind == 'paper' and self.metric.epsilon == 0.0 and self.robot.dof >= 6
+
+    def _reaches(self, q_end: np.ndarray, q_a: np.ndarray, q_b: np.ndarray, goal_pose: bool) -> bool:
+        """Whether the followed line's end ``q_end`` may be the plan's goal: the given goal
+        joints themselves, or, for a goal pose, a configuration not reached the long way round
+        (unless allowed)."""
+        if not goal_pose:
+            return bool(np.abs(q_end - q_b).max() <= 1e-6)
+        return self.allow_long_way or bool(long_way_excess(self.robot, q_a, q_end).max() <= LONG_WAY_EXCESS)
+
+    def _follow_line(self, q_a: np.ndarray, q_b: np.ndarray) -> LineFollow:
+        """The line + slerp from FK(q_a) to FK(q_b), followed from q_a by continuation."""
+        T_a, T_b, w_body = self._task_line(q_a, q_b)
+        return follow_line(self.robot, q_a, T_a, T_b, w_body,
+                           position_weight=self.metric.position_weight,
+                           orientation_weight=self.metric.effective_orientation_weight or 1.0)
 
     def _pullback_path(self, q_a: np.ndarray, q_b: np.ndarray, s: np.ndarray, q: np.ndarray,
                        v: np.ndarray, ik_a: IKSolution | None, ik_b: IKSolution | None,
-                       t0: float) -> GeodesicPath | None:
+                       t0: float, follow: LineFollow | None = None) -> GeodesicPath | None:
         """The geodesic as the exact pulled-back task-space geodesic, or None to fall back.
 
         The nodes (IK of line + slerp, q' and q'' = the geodesic equations' value) lie on the
         geodesic to IK precision, so no Newton step is needed: the mesh is refined until the
         quintic Hermite path through them is within ``path_tolerance`` of the geodesic between
         nodes (error ~ h⁶, so each interval is split once into the number of parts it needs).
+        The new nodes are seeded from the spline, or from ``follow`` (the line followed by
+        continuation) where the mesh seeds had missed the branch.
         """
         eq = self.equations
         deadline = None if self.time_limit is None else time.perf_counter() + self.time_limit
@@ -406,8 +465,8 @@ class GeodesicPlanner:
             if s.size + int(parts.sum()) - parts.size > self.max_nodes:
                 return None
             s_new = split_intervals(s, parts)
-            seeds = spline(s_new, order=0)[0]
-            q, v, exact = self.initial_guess(q_a, q_b, s_new, seeds)
+            seeds = spline(s_new, order=0)[0] if follow is None else follow.seeds(s_new)
+            q, v, exact = self.initial_guess(q_a, q_b, s_new, seeds, on_branch=follow is not None)
             s = s_new
             if not exact:
                 return None

@@ -6,7 +6,9 @@ Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default)
   joints, or unset = the current joint state), goal (pose or joints), via poses, ``blend_radius``
   (m; > 0: pass the via poses without stopping), scaling factors and ``execute``; the reply
   carries the PlanErrorCode (:data:`~.planning.ERROR_CODES` maps each library error class to
-  one), the reason, the trajectory, the tool path, the solver's figures and the blend deviations.
+  one), the reason, the trajectory, the tool path, the solver's figures, the blend deviations and
+  the fraction of the straight line that can be followed (1 on success; where a singularity, a
+  joint limit or an unreachable pose stops the line, the fraction up to it, named in the reason).
   Plan-only unless ``execute`` is true. With a joint state known, an explicit start is solved
   seeded from it and refused (START_STATE_MISMATCH) beyond ``allowed_start_tolerance``.
 * service ``~/plan`` (nav_msgs/srv/GetPlan, compatibility; every success is published, no
@@ -141,6 +143,13 @@ class Outcome:
     message: str
     result: PlanResult | None = None
     published: bool = False
+    fraction: float = -1.0
+
+    @classmethod
+    def failure(cls, err: GeodesicPlannerError) -> Outcome:
+        """The outcome of a library error: its code, its message and, for a line that cannot be
+        followed, the followable fraction (``PathFollowError.fraction``)."""
+        return cls(error_code(err), str(err), fraction=float(getattr(err, 'fraction', -1.0)))
 
 
 def _joint_state_problem(message: str) -> str:
@@ -430,6 +439,7 @@ class GeodesicPlannerNode(Node):
         response.message = outcome.message
         response.planning_time = time.perf_counter() - t0
         result = outcome.result
+        response.fraction = 1.0 if result is not None else outcome.fraction
         if result is not None:
             response.trajectory = result.trajectory
             response.tool_path = result.path
@@ -467,7 +477,7 @@ class GeodesicPlannerNode(Node):
             finally:
                 self.queue.leave(ticket)
         except GeodesicPlannerError as err:
-            outcome = Outcome(error_code(err), str(err))
+            outcome = Outcome.failure(err)
         except Exception as err:  # noqa: BLE001 - boundary: answer and keep serving
             outcome = Outcome(PlanErrorCode.PLANNING_FAILED, f'internal error: {type(err).__name__}: {err}')
         total_ms = (time.perf_counter() - t0) * 1e3
@@ -530,7 +540,7 @@ class GeodesicPlannerNode(Node):
                            f'({self._abandoned} so far)')
         err = run.error
         if isinstance(err, GeodesicPlannerError):
-            return Outcome(error_code(err), str(err))
+            return Outcome.failure(err)
         if err is not None:
             after = ' (after publishing the trajectory)' if run.committed else ''
             return Outcome(PlanErrorCode.PLANNING_FAILED,

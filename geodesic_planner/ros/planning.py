@@ -38,8 +38,8 @@ from .. import GeodesicPlanner, load_robot
 from ..core.blend import BlendedPath
 from ..core.cancel import checkpoint
 from ..core.errors import (BVPError, FrameError, GeodesicPlannerError, IKError, KinematicsError,
-                           LimitError, RequestError, SingularMetricError, StartStateError,
-                           TrajectoryError)
+                           LimitError, PathFollowError, RequestError, SingularMetricError,
+                           StartStateError, TrajectoryError)
 from ..core.kinematics import Chain
 from ..io.joint_limits import apply_joint_limits, load_joint_limits
 from ..io.requests import PlanRequest
@@ -78,7 +78,8 @@ ERROR_CODES: tuple[tuple[type[BaseException], int], ...] = (
     (ConfigError, PlanErrorCode.PLANNING_FAILED),          # no usable model yet
     (RequestError, PlanErrorCode.INVALID_REQUEST),
     (IKError, PlanErrorCode.NO_IK_SOLUTION),
-    (LimitError, PlanErrorCode.JOINT_LIMITS_VIOLATED),
+    (LimitError, PlanErrorCode.JOINT_LIMITS_VIOLATED),      # a line past a joint limit too
+    (PathFollowError, PlanErrorCode.PLANNING_FAILED),       # a line through a singularity
     (PlanTimeoutError, PlanErrorCode.TIMED_OUT),
     (BVPError, PlanErrorCode.PLANNING_FAILED),
     (SingularMetricError, PlanErrorCode.PLANNING_FAILED),

@@ -24,6 +24,7 @@ from geodesic_planner.core.errors import (
     BVPError,
     GeodesicPlannerError,
     IKError,
+    PathFollowError,
     KinematicsError,
     LimitError,
     RequestError,
@@ -44,6 +45,9 @@ PRESET_NAMES = ('planar_3r', 'rrpp', 'ur5e', 'panda')
 
 #: What a message must mention for each exception type (the cause, in words).
 CAUSES: dict[type, str] = {
+    # first: its subclasses are also LimitError / IKError, with a message of the line's own
+    PathFollowError: r'(passes through a singularity|would pass its limit|cannot be followed).*'
+                     r'% of the way.*followable fraction',
     RequestError: r'NaN|inf|expected|got|normalis|quaternion|rotation|shape|joints|last row|must|'
                   r'unknown|give|values|both 0|metric|nodes|time_limit|tolerance|not a numeric|cannot read|tol',
     IKError: r'IK failed.*(nearest reachable pose|outside joint limits)',

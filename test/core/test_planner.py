@@ -31,6 +31,7 @@ from geodesic_planner.core.errors import (
     GeodesicPlannerError,
     IKError,
     LimitError,
+    PathFollowError,
     RequestError,
     SingularMetricError,
 )
@@ -495,15 +496,16 @@ def test_regression_singular_end(robot_name: str, q_s: list[float], end: str) ->
 
 def test_regression_near_singular_diverging_solve() -> None:
     """Found by the fuzzer: both ends near the UR5e elbow singularity (θ3 ≈ 2π). The solve may fail
-    but must say so as a BVPError (it once was a SingularMetricError 'at a point of the path')."""
+    but must say why (it once was a SingularMetricError 'at a point of the path', then the
+    solver's words): since issue 21, the singularity on the line and where it is."""
     planner = GeodesicPlanner(load_robot('ur5e'), time_limit=SOLVE_TIME_LIMIT)
     q_a, q_b = [1.45, -1.462, 6.248, 6.042, 2.332, 1.891], [1.638, -1.573, 5.883, 6.264, 2.357, 1.701]
     out = guarded('regression', lambda: planner.plan(None, None, q_a, q_b))
     if out.value is not None:
         check_path(planner, out.value, np.array(q_a), np.array(q_b))
     else:
-        assert isinstance(out.error, BVPError), out.error
-        assert re.search(r'diverged|did not converge', str(out.error)), out.error
+        assert isinstance(out.error, PathFollowError), out.error
+        assert re.search(r'passes through a singularity .* at \d+(\.\d+)? % of the way', str(out.error)), out.error
 
 
 def test_regression_time_limit() -> None:

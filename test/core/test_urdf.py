@@ -1,11 +1,13 @@
 """URDF chains: a DH chain written as URDF (fixed joints folded in, rpy origins, re-oriented joint
 axes, prismatic and continuous joints, base offset, tool) has the DH chain's FK; limits are read;
-the example URDFs under geodesic_planner/data match their DH tables; errors name their cause."""
+the example URDFs under geodesic_planner/data match their DH tables; continuous and fixed joints
+inside a chain and mimic joints match hand-computed transforms and pinocchio; errors name their cause."""
 from __future__ import annotations
 
 import os
 
 import numpy as np
+import pin_oracle
 import pytest
 import urdf_util as U
 from hypothesis import given, settings
@@ -179,8 +181,78 @@ def test_branching_tree_right_branch_prismatic_by_hand():
 
 
 def test_mimic_joint_on_the_chain_is_rejected():
-    with pytest.raises(KinematicsError, match=r"joint 'right_finger_joint' is a mimic joint"):
+    with pytest.raises(KinematicsError, match=r"joint 'right_finger_joint' is a mimic joint on the chain from 'base' "
+                                              r"to 'right_finger': it moves with joint 'j_right' \(on the chain\) as "
+                                              r"2 \* q \+ 0, which a chain of independent joints cannot represent"):
         load_robot(BRANCHING, tip_link='right_finger')
+
+
+# ------------------------------------------------------------- mimic, continuous and fixed joints (pinocchio)
+#: base -(j1 revolute z, 0.4 up)- l1 -(fix1: 0.3 along x, rpy)- l2 -(j2 continuous y)- l3 -(fix2)- l4
+#: -(j3 prismatic x)- l5 -(tool fixed)- tool; a two-finger gripper hangs from l5, finger_b mimics finger_a.
+ARM = """<robot name="mixed">
+  <link name="base"/><link name="l1"/><link name="l2"/><link name="l3"/><link name="l4"/><link name="l5"/>
+  <link name="tool"/><link name="finger_a"/><link name="finger_b"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.4"/>
+    <axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1.5"/></joint>
+  <joint name="fix1" type="fixed"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0.3 0 0" rpy="0.3 -0.2 0.5"/></joint>
+  <joint name="j2" type="continuous"><parent link="l2"/><child link="l3"/><axis xyz="0 1 0"/></joint>
+  <joint name="fix2" type="fixed"><parent link="l3"/><child link="l4"/><origin xyz="0 0 0.25" rpy="0 1.2 0"/></joint>
+  <joint name="j3" type="prismatic"><parent link="l4"/><child link="l5"/><origin xyz="0.1 0 0"/>
+    <axis xyz="1 0 0"/><limit lower="0" upper="0.3" effort="1" velocity="0.2"/></joint>
+  <joint name="tool_joint" type="fixed"><parent link="l5"/><child link="tool"/><origin xyz="0 0 0.05"/></joint>
+  <joint name="finger_a_joint" type="prismatic"><parent link="l5"/><child link="finger_a"/>
+    <axis xyz="0 1 0"/><limit lower="0" upper="0.04" effort="1" velocity="0.1"/></joint>
+  <joint name="finger_b_joint" type="prismatic"><parent link="l5"/><child link="finger_b"/>
+    <axis xyz="0 -1 0"/><limit lower="0" upper="0.04" effort="1" velocity="0.1"/>
+    <mimic joint="finger_a_joint" multiplier="1" offset="0"/></joint>
+</robot>"""
+
+
+def hand_fk(q):
+    """ARM's base -> tool, multiplied out by hand."""
+    return (U.tr(0, 0, 0.4) @ U.rz(q[0]) @ U.xyz_rpy((0.3, 0, 0), (0.3, -0.2, 0.5)) @ U.ry(q[1])
+            @ U.xyz_rpy((0, 0, 0.25), (0, 1.2, 0)) @ U.tr(0.1, 0, 0) @ U.tr(q[2], 0, 0) @ U.tr(0, 0, 0.05))
+
+
+def test_continuous_and_fixed_joints_inside_the_chain_and_a_mimic_finger_off_it():
+    robot = chain_from_urdf(ARM, tip_link='tool')
+    assert robot.joint_names == ['j1', 'j2', 'j3'] and robot.joint_types == ('revolute', 'revolute', 'prismatic')
+    assert_allclose(robot.lower, [-2, -np.inf, 0]) and assert_allclose(robot.upper, [2, np.inf, 0.3])
+    qs = np.random.default_rng(8).uniform([-2, -7, 0], [2, 7, 0.3], size=(25, 3))
+    for q in qs:
+        assert_allclose(robot.fk(q), hand_fk(q), atol=1e-15)
+    assert max(pin_oracle.errors(robot, pin_oracle.model(ARM), qs)) <= 1e-12
+    # the mimic finger may even follow a joint that does not exist (urdfdom does not check): still off the chain
+    assert chain_from_urdf(ARM.replace('joint="finger_a_joint"', 'joint="nope"'), tip_link='tool').dof == 3
+    finger = chain_from_urdf(ARM, tip_link='finger_a')
+    assert finger.joint_names == ['j1', 'j2', 'j3', 'finger_a_joint']
+
+
+@pytest.mark.parametrize('followed, where', [('finger_a_joint', 'not on the chain'), ('j3', 'on the chain')])
+def test_mimic_joint_that_moves_is_refused_on_the_chain(followed, where):
+    xml = ARM.replace('joint="finger_a_joint"', f'joint="{followed}"').replace('multiplier="1" offset="0"',
+                                                                                'multiplier="-0.5" offset="0.01"')
+    with pytest.raises(KinematicsError, match=rf"joint 'finger_b_joint' is a mimic joint on the chain from 'base' to "
+                                              rf"'finger_b': it moves with joint '{followed}' \({where}\) as "
+                                              r"-0.5 \* q \+ 0.01, .*choose a tip_link before it"):
+        chain_from_urdf(xml, tip_link='finger_b')
+
+
+@pytest.mark.parametrize('kind, axis', [('prismatic', '0 -1 0'), ('revolute', '0.6 0 0.8')])
+def test_mimic_joint_with_multiplier_zero_stays_at_its_offset(kind, axis):
+    """q_mimic = 0 * q + offset: a fixed joint at the offset, folded in (checked against pinocchio
+    with that joint set to the offset)."""
+    xml = ARM.replace('multiplier="1" offset="0"', 'multiplier="0" offset="0.03"').replace(
+        '<joint name="finger_b_joint" type="prismatic">', f'<joint name="finger_b_joint" type="{kind}">').replace(
+        '<axis xyz="0 -1 0"/>', f'<axis xyz="{axis}"/>')
+    robot = chain_from_urdf(xml, tip_link='finger_b')
+    assert robot.joint_names == ['j1', 'j2', 'j3']
+    m = pin_oracle.model(xml)
+    for q in np.random.default_rng(9).uniform([-2, -7, 0], [2, 7, 0.3], size=(10, 3)):
+        ref = pin_oracle.fk(m, robot.joint_names, q, 'base', 'finger_b', rest={'finger_b_joint': 0.03})
+        assert_allclose(robot.fk(q), ref, atol=1e-12)
 
 
 def test_floating_joint_on_the_chain_is_rejected_but_fine_elsewhere():
@@ -221,7 +293,7 @@ _MALFORMED = [
      r"joint 'j' \(revolute\) needs a <limit>"),
     (GOOD.replace('xyz="0 0 1" rpy', 'xyz="0 1" rpy'), "joint 'j' origin xyz: expected 3 finite numbers"),
     (GOOD.replace('rpy="0 0 0"', 'rpy="a b c"'), "joint 'j' origin rpy: not numbers"),
-    (GOOD.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 nan"/>'), "joint 'j' axis: expected 3 finite numbers"),
+    (GOOD.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 nan"/>'), "joint 'j' axis: not numbers"),
     (GOOD.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>'), 'invalid axis'),
     (GOOD.replace('<parent link="a"/>', ''), "joint 'j' lacks a parent or child link"),
     (GOOD.replace('upper="1"', 'upper="x"'), r"joint 'j': bad <limit>"),
@@ -255,7 +327,9 @@ def test_load_robot_urdf_file_errors(tmp_path):
     ('<safety_controller soft_lower_limit="-0.5" soft_upper_limit="0.75" k_position="10" k_velocity="1"/>',
      (-0.5, 0.75)),
     ('<safety_controller soft_lower_limit="-2" soft_upper_limit="0.5" k_velocity="1"/>', (-1.0, 0.5)),
-    ('<safety_controller k_velocity="1"/>', (-1.0, 1.0)),
+    # a soft limit not given is 0, as urdfdom reads it (and MoveIt and ros2_control use it)
+    ('<safety_controller soft_lower_limit="-0.25" k_velocity="1"/>', (-0.25, 0.0)),
+    ('<safety_controller soft_upper_limit="0.5" k_velocity="1"/>', (0.0, 0.5)),
     ('', (-1.0, 1.0)),
 ])
 def test_safety_controller_soft_limits_narrow_the_position_limits(safety, expected):
@@ -263,8 +337,18 @@ def test_safety_controller_soft_limits_narrow_the_position_limits(safety, expect
     assert (robot.lower[0], robot.upper[0]) == expected
 
 
+def test_safety_controller_does_not_bound_a_continuous_joint():
+    """MoveIt and ros2_control keep a continuous joint unbounded whatever its safety controller says."""
+    xml = GOOD.replace('type="revolute"', 'type="continuous"').replace(
+        '</joint>', '<safety_controller soft_lower_limit="-0.5" soft_upper_limit="0.5" k_velocity="1"/></joint>')
+    robot = chain_from_urdf(xml)
+    assert (robot.lower[0], robot.upper[0]) == (-np.inf, np.inf)
+
+
 @pytest.mark.parametrize('safety, match', [
     ('<safety_controller soft_lower_limit="0.9" soft_upper_limit="-0.9" k_velocity="1"/>', 'leave no room'),
+    ('<safety_controller k_velocity="1"/>', r'soft limits \[0, 0\] leave no room .*a soft limit not given is 0'),
+    ('<safety_controller soft_lower_limit="-1" soft_upper_limit="1"/>', 'has no k_velocity'),
     ('<safety_controller soft_lower_limit="abc" k_velocity="1"/>', 'bad <safety_controller>'),
     ('<safety_controller soft_upper_limit="nan" k_velocity="1"/>', 'NaN'),
 ])
@@ -300,9 +384,11 @@ def test_cycles_are_refused_at_once(edges, kwargs):
 
 def test_disconnected_tip_is_refused():
     with pytest.raises(KinematicsError, match='not below base_link'):
-        chain_from_urdf(_graph_urdf([('a', 'b'), ('x', 'y')]), base_link='a', tip_link='y')
-    with pytest.raises(KinematicsError, match='one root link'):
-        chain_from_urdf(_graph_urdf([('a', 'b'), ('x', 'y')]))
+        chain_from_urdf(_graph_urdf([('a', 'b'), ('a', 'x'), ('x', 'y')]), base_link='b', tip_link='y')
+    # two separate trees: urdfdom refuses the document ("Two root links found"), whatever the chain ends
+    for kwargs in ({}, {'base_link': 'a', 'tip_link': 'b'}, {'base_link': 'a', 'tip_link': 'y'}):
+        with pytest.raises(KinematicsError, match=r"one root link, found 2: \['a', 'x'\]"):
+            chain_from_urdf(_graph_urdf([('a', 'b'), ('x', 'y')]), **kwargs)
 
 
 @settings(max_examples=150, deadline=2000)
@@ -325,14 +411,24 @@ def test_any_link_graph_gives_a_chain_or_one_clear_error(parents, base, tip):
     ('<robot name="r">' + '<link name="x"/>' * 20_001 + '</robot>', 'more than the 20000'),
     (GOOD.replace('velocity="1"', 'velocity="inf"'), 'must be finite'),
     (GOOD.replace('lower="-1"', 'lower="nan"'), 'must be finite'),
-], ids=['doctype', 'too-many-elements', 'inf-velocity', 'nan-limit'])
+    # half a million elements inside an ignored block: counted and refused, never all kept
+    (GOOD.replace('</robot>', '<gazebo>' + '<a/>' * 500_001 + '</gazebo></robot>'),
+     'more than the 500000 XML elements'),
+], ids=['doctype', 'too-many-elements', 'inf-velocity', 'nan-limit', 'too-many-xml-elements'])
+@pytest.mark.timeout(20)
 def test_hostile_documents_are_refused(xml, match):
     with pytest.raises(KinematicsError, match=match):
         chain_from_urdf(xml)
 
 
+def test_deep_nesting_in_an_ignored_block_is_read_without_keeping_it():
+    """200 000 nested elements (deeper than any recursion limit): read, not kept, the chain is GOOD's."""
+    xml = GOOD.replace('</robot>', '<gazebo>' + '<a>' * 200_000 + '</a>' * 200_000 + '</gazebo></robot>')
+    assert_allclose(chain_from_urdf(xml).fk(np.array([0.4])), chain_from_urdf(GOOD).fk(np.array([0.4])), atol=0)
+
+
 def test_oversized_text_is_refused_before_parsing(monkeypatch):
-    import geodesic_planner.core.urdf as urdf_module
+    import geodesic_planner.core.urdf_xml as urdf_module
     monkeypatch.setattr(urdf_module, 'MAX_URDF_BYTES', 1000)
     with pytest.raises(KinematicsError, match='more than the 1000'):
         chain_from_urdf(GOOD + ' ' * 1000)

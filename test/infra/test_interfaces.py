@@ -48,7 +48,8 @@ def test_built_package_imports_with_no_ros_environment() -> None:
                                      'velocity_scaling_factor', 'acceleration_scaling_factor', 'execute',
                                      'blend_radius'])
     assert out['response'] == sorted(['error_code', 'message', 'trajectory', 'tool_path', 'solver_method',
-                                      'path_error', 'planning_time', 'blend_deviation'])
+                                      'path_error', 'planning_time', 'blend_deviation',
+                                      'fraction'])
     assert out['execute'] is False and out['code'] == 0
 
 

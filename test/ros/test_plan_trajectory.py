@@ -28,9 +28,12 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
+from geometry_msgs.msg import PoseStamped
 from trajectory_msgs.msg import JointTrajectory
 
 import geodesic_planner
+import urdf_util as U
+from line_cases import MISSED, THROUGH_ELBOW
 from geodesic_planner.core.urdf import chain_from_urdf
 from geodesic_planner.ros import conversions as cv
 
@@ -337,6 +340,33 @@ def test_abandoned_plan_is_cancelled_and_the_next_one_plans(planar: Planner) -> 
               f'after its cancellation; the next request took {good.planning_time * 1e3:.1f} ms')
     finally:
         planar.helper.destroy_subscription(stopped.subscription)
+
+
+def test_a_line_through_a_singularity_is_refused_with_the_place_and_the_fraction(
+        helper: Any, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Issue 21 #5 through the node: the ur5e line through its folded elbow is refused with
+    PLANNING_FAILED, the reason and place in the message and the followable fraction in the reply
+    (as GetCartesianPath); a followable line gives fraction 1; another failure -1."""
+    names = geodesic_planner.load_robot('ur5e').joint_names
+    ur = Planner(helper, tmp_path_factory.mktemp('pt_ur5e'), {'robot': 'ur5e'}, '/pt_ur5e')
+    try:
+        q_a, q_b = THROUGH_ELBOW
+        goal = cv.matrix_to_pose(U.ur5e_fk_batch(np.array([q_b]))[0])
+        req = plan_request(start_joints=q_a, goal=PoseStamped(pose=goal), names=names)
+        refused = ur.plan(req)
+        assert refused.error_code.val == PlanErrorCode.PLANNING_FAILED, refused.message
+        assert 'passes through a singularity' in refused.message and '% of the way' in refused.message
+        assert 0.5 < refused.fraction < 1.0
+        assert f'followable fraction {refused.fraction:.4f}' in refused.message
+        q_a, q_b = MISSED['elbow_nearly_stretched']
+        goal = cv.matrix_to_pose(U.ur5e_fk_batch(np.array([q_b]))[0])
+        ok = ur.plan(plan_request(start_joints=q_a, goal=PoseStamped(pose=goal), names=names))
+        assert ok.error_code.val == OK and ok.fraction == 1.0 and ok.solver_method == 'pullback', ok.message
+        other = ur.plan(plan_request(start_joints=q_a, goal=pose_3r(*GOAL_3R, frame='elsewhere'),
+                                     names=names))
+        assert other.error_code.val == PlanErrorCode.FRAME_TRANSFORM_FAILURE and other.fraction == -1.0
+    finally:
+        ur.stop()
 
 
 # =========================================================================== start state

@@ -1,0 +1,71 @@
+"""Random moves on real arms (issue 21, items 2, 4 and 5): every followable line is planned, exactly.
+
+Each move starts at a random configuration within the limits and goes to the tool pose of a
+nearby configuration (every joint moved by up to 0.3 rad), so both ends are reachable. Whether
+its straight line + slerp can be followed is decided independently of the library: pinocchio's
+FK and Jacobian, Newton IK from the previous sample over ``ORACLE_STEPS`` equal steps
+(``pin_oracle.follow``). A move is *followable* when every step converges, no joint steps by more
+than ``MAX_ORACLE_STEP`` (no flip), the Jacobian's smallest singular value stays at or above
+``MIN_SIGMA`` (ends included) and every sample is within the limits. Followable moves must be
+planned with the tool on the line and the slerp to 1e-8 m and 1e-8 rad (pinocchio's FK at 101
+points of the path) and the goal pose reached; the others may be refused, with the reason named.
+``GP_REAL_ARM_MOVES`` sets the moves per arm (default 4; benchmarks/real_arms.py runs 40).
+"""
+from __future__ import annotations
+
+import os
+import re
+
+import numpy as np
+import pin_oracle as P
+import pytest
+from planning_checks import CAUSES
+from test_real_arms import ARMS, arm
+
+from geodesic_planner import GeodesicPlanner
+from geodesic_planner.core.errors import GeodesicPlannerError
+
+MOVES = int(os.environ.get('GP_REAL_ARM_MOVES', '4'))
+ORACLE_STEPS = 1000
+MAX_ORACLE_STEP = 0.02      # rad per 1/1000 of the line: 20 rad per line, a flip beyond
+MIN_SIGMA = 1e-3
+LINE_TOL = 1e-8
+SIX_JOINTS = [k for k in ARMS if k not in ('panda', 'xarm7', 'kuka_iiwa14')]
+
+
+def random_move(robot, rng: np.random.Generator, scale: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+    """(start joints, nearby goal joints) within the limits (continuous joints within one turn)."""
+    lo = np.where(np.isfinite(robot.lower), robot.lower, -np.pi)
+    hi = np.where(np.isfinite(robot.upper), robot.upper, np.pi)
+    q_a = rng.uniform(lo, hi)
+    return q_a, np.clip(q_a + rng.uniform(-scale, scale, robot.dof), lo, hi)
+
+
+def followable(robot, kin: P.Kinematics, q_a: np.ndarray, T_b: np.ndarray) -> bool:
+    """The independent verdict (module docstring)."""
+    qs, sigma, step = P.follow(kin, q_a, T_b, ORACLE_STEPS)
+    inside = np.all((qs >= robot.lower - 1e-9) & (qs <= robot.upper + 1e-9))
+    return bool(np.all(np.isfinite(qs)) and sigma >= MIN_SIGMA and step <= MAX_ORACLE_STEP and inside)
+
+
+@pytest.mark.parametrize('key', SIX_JOINTS)
+def test_random_moves_followable_lines_planned_exactly(key: str) -> None:
+    _, base, tip, _ = ARMS[key]
+    _, robot, m = arm(key)
+    kin = P.Kinematics(m, robot.joint_names, base, tip)
+    planner = GeodesicPlanner(robot)
+    rng = np.random.default_rng(sum(map(ord, key)))
+    s = np.linspace(0.0, 1.0, 101)
+    for _ in range(MOVES):
+        q_a, q_b = random_move(robot, rng)
+        T_a, T_b = kin.pose_and_jacobian(q_a)[0], kin.pose_and_jacobian(q_b)[0]
+        try:
+            path = planner.plan(None, T_b, start_joints=q_a)
+        except GeodesicPlannerError as err:
+            assert not followable(robot, kin, q_a, T_b), f'{key}: followable move refused: {err}'
+            pattern = next(p for k, p in CAUSES.items() if isinstance(err, k))
+            assert re.search(pattern, str(err)), f'{key}: refusal without its cause: {err}'
+            continue
+        if path.solver.method == 'pullback' or followable(robot, kin, q_a, T_b):
+            dp, dr = P.line_errors(m, robot.joint_names, base, tip, path.evaluate(s, order=0)[0], s, T_a, T_b)
+            assert dp <= LINE_TOL and dr <= LINE_TOL, (key, q_a.tolist(), q_b.tolist(), dp, dr)
