@@ -24,6 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .cancel import checkpoint
+from .continuation import LineFollow, follow_line
 from .errors import BVPError, LimitError
 from .geodesic import GeodesicPath, SolverReport
 from .ik import IKSolution
@@ -32,10 +33,10 @@ from .redundant import LineTask, RedundantEquations, pose_residual, skew_vee, so
 
 #: Chebyshev intervals of the first solve, and the most a solve may use.
 CHEBYSHEV_INTERVALS = 12
-MAX_CHEBYSHEV_INTERVALS = 96
+MAX_CHEBYSHEV_INTERVALS = 256
 #: Newton iterations per solve, their convergence bound on the step (rad or m), and the largest
 #: step of one iteration (longer ones are shortened).
-NEWTON_ITERATIONS = 20
+NEWTON_ITERATIONS = 24
 NEWTON_TOL = 1e-12
 MAX_STEP = 0.3
 #: Minimal-norm IK that puts the solved nodes on their poses: iterations, the pose error (m, rad)
@@ -172,8 +173,8 @@ def _newton_step(eq: RedundantEquations, Q: np.ndarray, free: np.ndarray, target
 
 
 def solve_nodes(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np.ndarray, free_end: bool,
-                tail_tol: float, deadline: float | None = None, max_intervals: int = MAX_CHEBYSHEV_INTERVALS
-                ) -> tuple[int, np.ndarray, int, float]:
+                tail_tol: float, deadline: float | None = None, max_intervals: int = MAX_CHEBYSHEV_INTERVALS,
+                follow: LineFollow | None = None) -> tuple[int, np.ndarray, int, float]:
     """The least-motion path at Chebyshev-Lobatto nodes, truncation error below ``tail_tol``.
 
     Newton iterations (:func:`_newton_step`) on chebyshev(m)'s nodes; once the last Chebyshev
@@ -185,6 +186,8 @@ def solve_nodes(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np
             ``free_end`` (the goal is then chosen by transversality).
         tail_tol: bound on the last two Chebyshev coefficients, rad or m.
         max_intervals: the most Chebyshev intervals allowed (at most MAX_CHEBYSHEV_INTERVALS).
+        follow: the line followed by continuation from q_a, whose samples start the iterations
+            (with a fixed goal, shifted linearly in s onto it); None: the straight joint line.
     Returns:
         (m, Q, iterations, tail): Q (m + 1, dof) at chebyshev(m)'s nodes, the Newton iterations in
         all, and the last two Chebyshev coefficients' size (rad or m).
@@ -193,8 +196,16 @@ def solve_nodes(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np
     """
     max_intervals = min(max_intervals, MAX_CHEBYSHEV_INTERVALS)
     m = min(CHEBYSHEV_INTERVALS, max_intervals)
-    Q = q_a + chebyshev(m)[0][:, None] * (q_b - q_a)
-    Q[0], Q[-1] = q_a, q_b
+    s = chebyshev(m)[0]
+    if follow is None:
+        Q = q_a + s[:, None] * (q_b - q_a)
+    else:
+        Q = follow.seeds(s)
+        if not free_end:
+            Q += s[:, None] * (q_b - follow.q[-1])
+    Q[0] = q_a
+    if not (free_end and follow is not None):
+        Q[-1] = q_b
     last = gain = np.inf
     new_mesh = True
     for it in range(1, NEWTON_ITERATIONS + 1):
@@ -222,8 +233,9 @@ def solve_nodes(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np
             return m, Q, it, tail
         if tail > tail_tol and tail > 100.0 * ahead:
             # |c_k| falls about geometrically: enough intervals for the tail to reach tail_tol.
-            rate = max(np.log(max(float(c[m // 2 - 1:m // 2 + 1].max()), 1e-300) / tail) / (m - m // 2), 0.3)
-            m_next = int(np.clip(m + np.ceil(np.log(tail / tail_tol) / rate) + 2, m + 4, 2 * m))
+            rate = max(np.log(max(float(c[m // 2 - 1:m // 2 + 1].max()), 1e-300) / tail) / (m - m // 2), 1e-3)
+            m_next = min(int(np.clip(m + np.ceil(np.log(tail / tail_tol) / rate) + 2, m + 4, 2 * m)),
+                         max(max_intervals, m + 1))
             if m_next > max_intervals:
                 raise _NoPathError(f'not resolved by {m} Chebyshev intervals')
             Q = interpolation_matrix(m, chebyshev(m_next)[0]) @ Q
@@ -301,14 +313,16 @@ def midpoint_error(eq: RedundantEquations, task: LineTask, s: np.ndarray, path: 
 
 def redundant_path(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np.ndarray, *, free_end: bool,
                    path_tolerance: float, t0: float, deadline: float | None = None, max_nodes: int = 2000,
-                   ik_start: IKSolution | None = None, ik_goal: IKSolution | None = None) -> GeodesicPath:
+                   ik_start: IKSolution | None = None, ik_goal: IKSolution | None = None,
+                   follow: LineFollow | None = None) -> GeodesicPath:
     """The least-motion path with the tool on ``task`` (module docstring, steps 1-2).
 
     Args:
         q_a, q_b: start and goal joints (dof,), on task's end poses; with ``free_end`` q_b only
             seeds the goal.
         path_tolerance: m (and rad); t0: perf_counter at the plan's start (for the report);
-            deadline: perf_counter time limit, or None; max_nodes: the most nodes (>= 3).
+            deadline: perf_counter time limit, or None; max_nodes: the most nodes (>= 3);
+            follow: the line followed by continuation, to start the iterations from (solve_nodes).
     Raises:
         _NoPathError, _TimeUpError.
     """
@@ -317,7 +331,7 @@ def redundant_path(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b:
         v = a = 0.0 * q
     else:
         m, Q, iterations, tail = solve_nodes(eq, task, q_a, q_b, free_end, TAIL_FRACTION * path_tolerance,
-                                             deadline, max_nodes - 1)
+                                             deadline, max_nodes - 1, follow)
         q, v, a = _node_data(eq, task, m, Q, not free_end)
     s = chebyshev(m)[0]
     path = ChebyshevPolynomial(m, q)
@@ -340,29 +354,44 @@ def plan_redundant(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b:
 
     To a goal pose (``ik_b`` given) the goal configuration is free (transversality); if that path
     leaves the joint limits (``check_limits`` raises LimitError), the IK's goal q_b is kept instead,
-    whose LimitError propagates.
+    whose LimitError propagates. Each is solved from the straight joint line first; where that
+    fails (near a singularity the iterations can wander off), from the line followed by
+    continuation (``continuation.follow_line``), when that reaches the goal pose.
 
     Raises:
         BVPError: the time limit ran out; LimitError: see above.
     """
     deadline = None if time_limit is None else time.perf_counter() + time_limit
+    followed: list[LineFollow | None] = []
     for free_end in (True, False) if ik_b is not None else (False,):
-        try:
-            path = redundant_path(eq, task, q_a, q_b, free_end=free_end, path_tolerance=path_tolerance, t0=t0,
-                                  deadline=deadline, max_nodes=max_nodes, ik_start=ik_a, ik_goal=ik_b)
-        except (_NoPathError, np.linalg.LinAlgError):   # LinAlgError: J singular at a node
-            continue
-        except _TimeUpError:
-            raise BVPError(f'geodesic solver exceeded its time limit of {time_limit:g} s for robot '
-                           f'{eq.robot.name!r}', status=-2) from None
-        if free_end and ik_b is not None:
-            path.ik_goal = dataclasses.replace(ik_b, q=path.q_goal)
-        try:
-            if check_limits is not None:
-                check_limits(path)
-        except LimitError:
-            if free_end:
+        for seeded in (False, True):
+            follow = None
+            if seeded:
+                if not followed:
+                    line = follow_line(eq.robot, q_a, task.T_a, task.T_b, task.w_body,
+                                       position_weight=eq.metric.position_weight,
+                                       orientation_weight=eq.metric.effective_orientation_weight or 1.0)
+                    followed.append(line if line.error is None else None)
+                follow = followed[0]
+                if follow is None:
+                    break
+            try:
+                path = redundant_path(eq, task, q_a, q_b, free_end=free_end, path_tolerance=path_tolerance, t0=t0,
+                                      deadline=deadline, max_nodes=max_nodes, ik_start=ik_a, ik_goal=ik_b,
+                                      follow=follow)
+            except (_NoPathError, np.linalg.LinAlgError):   # LinAlgError: J singular at a node
                 continue
-            raise
-        return path
+            except _TimeUpError:
+                raise BVPError(f'geodesic solver exceeded its time limit of {time_limit:g} s for robot '
+                               f'{eq.robot.name!r}', status=-2) from None
+            if free_end and ik_b is not None:
+                path.ik_goal = dataclasses.replace(ik_b, q=path.q_goal)
+            try:
+                if check_limits is not None:
+                    check_limits(path)
+            except LimitError:
+                if free_end:
+                    break
+                raise
+            return path
     return None
