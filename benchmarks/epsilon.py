@@ -1,11 +1,14 @@
 #!/usr/bin/env python3
 """How far the tool path of a 7-joint arm (panda) leaves the exact line + slerp as ε varies.
 
-The paper's metric is singular beyond 6 joints; geodesic_planner plans with ``G + ε I``. Larger ε
-pulls the geodesic towards the joint-space straight line (so the tool bows away from the line);
-smaller ε makes the BVP stiffer. Run: ``.venv/bin/python benchmarks/epsilon.py [--markdown FILE]
+The paper's metric is singular beyond 6 joints. The collocation route plans with ``G + ε I``
+(``GeodesicPlanner(robot, epsilon=ε)``; the default before issue 21): larger ε pulls the geodesic
+towards the joint-space straight line (so the tool bows away from the line); smaller ε makes the BVP
+stiffer. The last row is the default since issue 21, the ε → 0 limit (the least-motion path,
+docs/maths.md#redundant-arms). Run: ``.venv/bin/python benchmarks/epsilon.py [--markdown FILE]
 [--repeats 9]``. The plan time of a move is the median of ``--repeats`` plans, each by a new planner,
-in interleaved rounds over all (ε, move); the table gives the median over the moves.
+in interleaved rounds over all (ε, move); the table gives the median over the moves. ``--markdown``
+writes the table between its markers in FILE.
 """
 from __future__ import annotations
 
@@ -19,8 +22,11 @@ import numpy as np
 from geodesic_planner import GeodesicPlanner, GeodesicPlannerError, load_robot
 from geodesic_planner.core.metric import DEFAULT_REDUNDANT_EPSILON
 from geodesic_planner.core.transforms import line_slerp, pose_error, so3_exp
+from markdown_block import replace_block
 
 EPSILONS = (1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
+#: The last row: the planner's default, the least-motion path (its epsilon stays None).
+DEFAULT = 0.0
 
 
 def ordinary_moves(robot, count: int = 8, seed: int = 7):
@@ -41,7 +47,7 @@ def ordinary_moves(robot, count: int = 8, seed: int = 7):
 
 def conclusions(rows: dict[float, tuple[float, float, float]]) -> str:
     """The prose below the table, from the measured rows (eps -> (position m, orientation rad, ms))."""
-    eps = sorted(rows, reverse=True)
+    eps = sorted((e for e in rows if e != DEFAULT), reverse=True)
     # deviation ratio between neighbouring rows, per decade of epsilon (linear: 10)
     factors = [(rows[a][0] / rows[b][0]) ** (1.0 / np.log10(a / b)) for a, b in itertools.pairwise(eps)]
     linear = [a for a, f in zip(eps, factors) if 7.0 <= f <= 14.0]
@@ -56,18 +62,14 @@ def conclusions(rows: dict[float, tuple[float, float, float]]) -> str:
     d = DEFAULT_REDUNDANT_EPSILON
     if d in rows:
         dp, dr, t_d = rows[d]
-        inside = dp < 1e-4 and dr < 1e-3
-        text += (f'At the default ε = {d:g} it is {dp * 1e3:.4f} mm and {dr * 1e3:.4f} mrad, '
-                 + ('inside' if inside else 'outside') + ' the target of 0.1 mm and 1 mrad. ')
-        small = [e for e in eps if e < d]
-        if small:
-            ts = [rows[e][2] for e in small]
-            text += (f'Smaller ε brings the path closer still; on these moves its median plan time is '
-                     f'{min(ts):.1f}-{max(ts):.1f} ms against {t_d:.1f} ms at the default (medians of '
-                     'repeated plans on a shared 2-core machine, so differences of a few ms are noise). ')
-    text += ('The default keeps a margin on the conditioning of G + ε I (its smallest eigenvalue is ε in the '
-             'null-space direction), which matters near singular configurations. Larger ε trades '
-             'straightness for joint-space economy.')
+        text += (f'At ε = {d:g}, the collocation route\'s default (and the 7-joint default before issue 21), '
+                 f'it is {dp * 1e3:.4f} mm and {dr * 1e3:.4f} mrad in {t_d:.1f} ms. ')
+    if DEFAULT in rows:
+        dp, dr, t_0 = rows[DEFAULT]
+        text += (f'The default now plans the limit ε → 0 itself (last row): {dp:.1e} m and {dr:.1e} rad, '
+                 f'in {t_0:.1f} ms (medians of repeated plans on a shared 2-core machine, so differences '
+                 'of a few ms are noise). ')
+    text += 'Larger ε trades straightness for joint-space economy.'
     return text
 
 
@@ -85,8 +87,8 @@ def main(argv=None) -> int:
     lines = ['| epsilon | max position deviation (mm) | max orientation deviation (mrad) | '
              'median plan time (ms) | solved |', '|---|---|---|---|---|']
     solved: dict[float, list[int]] = {}
-    for eps in EPSILONS:
-        planner = GeodesicPlanner(robot, epsilon=eps)
+    for eps in (*EPSILONS, DEFAULT):
+        planner = GeodesicPlanner(robot, epsilon=eps or None)
         dps, drs, solved[eps] = [], [], []
         for i, (q0, T_a, T_b) in enumerate(moves):
             try:
@@ -102,35 +104,28 @@ def main(argv=None) -> int:
     # Plan times: every (epsilon, move) once per round, rounds repeated, so that a change of the
     # machine's load during the run touches every row alike; each plan by a new planner (a planner
     # remembers kinematics of its last plan).
-    runs: dict[tuple[float, int], list[float]] = {(e, i): [] for e in EPSILONS for i in solved[e]}
+    runs: dict[tuple[float, int], list[float]] = {(e, i): [] for e in (*EPSILONS, DEFAULT) for i in solved[e]}
     for _ in range(max(1, args.repeats)):
         for eps, i in runs:
             q0, T_a, T_b = moves[i]
-            fresh = GeodesicPlanner(robot, epsilon=eps)
+            fresh = GeodesicPlanner(robot, epsilon=eps or None)
             t0 = time.perf_counter()
             fresh.plan(T_a, T_b, start_joints=q0)
             runs[eps, i].append((time.perf_counter() - t0) * 1e3)
-    for eps in EPSILONS:
+    for eps in (*EPSILONS, DEFAULT):
         ms = float(np.median([np.median(runs[eps, i]) for i in solved[eps]])) if solved[eps] else float('nan')
         rows[eps] = (rows[eps][0], rows[eps][1], ms)
-        mark = ' (default)' if eps == DEFAULT_REDUNDANT_EPSILON else ''
-        lines.append(f'| {eps:g}{mark} | {rows[eps][0] * 1e3:.4f} | {rows[eps][1] * 1e3:.4f} | '
+        mark = {DEFAULT_REDUNDANT_EPSILON: ' (collocation default)', DEFAULT: ' (default: least motion)'}.get(eps, '')
+        lines.append(f'| {eps:g}{mark} | {rows[eps][0] * 1e3:.2g} | {rows[eps][1] * 1e3:.2g} | '
                      f'{ms:.1f} | {len(solved[eps])}/{len(moves)} |')
     table = '\n'.join(lines)
     print(table)
     if args.markdown:
-        with open(args.markdown, 'w', encoding='utf-8') as fh:
-            fh.write('# Redundant arms: the ε term\n\n'
-                     'The paper\'s metric `G = Jᵀ J` has rank at most 6, so for 7 joints it is singular '
-                     '(the paper lists this as future work). geodesic_planner plans with `G + ε I` '
-                     f'(`GeodesicPlanner(robot, epsilon=...)`; default {DEFAULT_REDUNDANT_EPSILON:g} for more '
-                     'than 6 joints, 0 otherwise). The ε term makes joint motion in the null space cost a '
-                     'little, which picks one geodesic out of the family; it also bends the tool path away '
-                     'from the exact line + slerp by an amount that grows with ε.\n\n'
-                     f'Panda (7 joints), {len(moves)} ordinary moves (5-20 cm with 5-25° of rotation near '
-                     'the home pose), tool path sampled at 1001 points against line + slerp at the same s. '
-                     'Generated by `.venv/bin/python benchmarks/epsilon.py --markdown docs/redundant-arms.md`.\n\n')
-            fh.write(table + '\n\n' + conclusions(rows) + '\n')
+        replace_block(args.markdown, 'benchmarks/epsilon.py',
+                      f'Panda (7 joints), {len(moves)} ordinary moves (5-20 cm with 5-25° of rotation near the home '
+                      'pose), tool path sampled at 1001 points against line + slerp at the same s. Generated by '
+                      f'`.venv/bin/python benchmarks/epsilon.py --markdown docs/redundant-arms.md`.\n\n{table}\n\n'
+                      + conclusions(rows))
     return 0
 
 

@@ -451,6 +451,19 @@ def panda_fk_batch(qs: np.ndarray) -> np.ndarray:
     return dh_fk_batched(PANDA_MDH, ['revolute'] * 7, qs, modified=True, tool=tr(z=0.107))
 
 
+#: UFACTORY xArm 7, modified DH rows (α_prev, a_prev, d, θ_offset) read off the joint origins of
+#: xarm_description's default kinematics (xyz + roll only); the flange is the tool. Limits as its URDF.
+XARM7_MDH = [(0.0, 0.0, 0.267, 0.0), (-PI / 2, 0.0, 0.0, 0.0), (PI / 2, 0.0, 0.293, 0.0),
+             (PI / 2, 0.0525, 0.0, 0.0), (PI / 2, 0.0775, 0.3425, 0.0), (PI / 2, 0.0, 0.0, 0.0),
+             (-PI / 2, 0.076, 0.097, 0.0)]
+XARM7_LOWER = [-2 * PI, -2.059, -2 * PI, -0.19198, -2 * PI, -1.69297, -2 * PI]
+XARM7_UPPER = [2 * PI, 2.0944, 2 * PI, 3.927, 2 * PI, PI, 2 * PI]
+
+
+def xarm7_fk_batch(qs: np.ndarray) -> np.ndarray:
+    return dh_fk_batched(XARM7_MDH, ['revolute'] * 7, qs, modified=True)
+
+
 def tool_deviation(fk_batch, qs: np.ndarray, T_a: np.ndarray, T_b: np.ndarray, s: np.ndarray):
     """Largest position (m) and rotation (rad) distance of FK(qs) from line + slerp at s."""
     T = fk_batch(qs)

@@ -15,6 +15,7 @@ import threading
 import time
 import warnings
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from scipy.integrate import solve_bvp
@@ -24,7 +25,17 @@ from .errors import BVPError, SingularMetricError
 from .kinematics import Chain
 from .metric import Metric
 from .path import JointPath, check_order, check_s
-from .polynomials import QuinticHermite
+from .polynomials import Interpolant, QuinticHermite
+
+
+class PathEquations(Protocol):
+    """What a :class:`GeodesicPath` needs of its equations: q'' = a(q, q') and q'''."""
+
+    robot: Chain
+    metric: Metric
+
+    def acceleration(self, q: np.ndarray, v: np.ndarray) -> np.ndarray: ...
+    def jerk(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
 
 class GeodesicEquations:
@@ -362,10 +373,10 @@ class GeodesicPath(JointPath):
         ik_start, ik_goal: IK solutions used for the ends (None if joints were given).
     """
 
-    def __init__(self, equations: GeodesicEquations, s_nodes: np.ndarray, q_nodes: np.ndarray,
+    def __init__(self, equations: PathEquations, s_nodes: np.ndarray, q_nodes: np.ndarray,
                  v_nodes: np.ndarray, solver: SolverReport,
                  ik_start: object | None = None, ik_goal: object | None = None,
-                 a_nodes: np.ndarray | None = None, spline: QuinticHermite | None = None) -> None:
+                 a_nodes: np.ndarray | None = None, spline: Interpolant | None = None) -> None:
         self.equations = equations
         self.robot = equations.robot
         self.metric = equations.metric

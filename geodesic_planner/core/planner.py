@@ -8,7 +8,9 @@
    equations give q'' at the nodes, and the mesh is refined until the quintic Hermite path
    through (q, q', q'') is within ``path_tolerance`` of the geodesic between the nodes
    (``geodesic.interpolation_error``). No Newton step is needed: method 'pullback'.
-4. Otherwise (redundant arms with ε > 0, arms that cannot follow the line, the 'position'
+4. Arms with more than 6 joints (paper metric, ε None or 0): the line + slerp with the least
+   joint motion (docs/maths.md#redundant-arms, core/redundant.py): method 'redundant'.
+5. Otherwise (redundant arms with ε > 0, arms that cannot follow the line, the 'position'
    metric): the geodesic BVP of the metric, solved by collocation
    from that guess (geodesic.solve_geodesic_bvp): method 'collocation'.
 
@@ -33,7 +35,9 @@ from .ik import IKSolution, dls_batch, gauss_newton_batch, nearest_branch, neare
 from .kinematics import Chain, embed12
 from .long_way import LONG_WAY_EXCESS, check_long_way, long_way_excess
 from .metric import DEFAULT_REDUNDANT_EPSILON, Metric
-from .polynomials import QuinticHermite
+from .polynomials import QuinticHermite, split_intervals
+from .redundant import LineTask, RedundantEquations
+from .redundant_solve import plan_redundant
 from .transforms import check_transform, hat, line_slerp, so3_log
 
 if TYPE_CHECKING:
@@ -82,14 +86,6 @@ def check_method(method: object) -> str:
     return method
 
 
-def split_intervals(s: np.ndarray, parts: np.ndarray) -> np.ndarray:
-    """Mesh s (m,) with interval i split into ``parts[i]`` (>= 1) equal parts."""
-    starts = np.cumsum(parts) - parts
-    k = np.arange(int(parts.sum())) - np.repeat(starts, parts)        # index within the interval
-    frac = k / np.repeat(parts, parts)
-    return np.concatenate([np.repeat(s[:-1], parts) + np.repeat(np.diff(s), parts) * frac, s[-1:]])
-
-
 def snap_same(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
     """q_b, or exactly q_a when the two differ only by round-off (a zero-length path)."""
     q_b = np.array(q_b, dtype=float)
@@ -104,11 +100,12 @@ class GeodesicPlanner:
         metric: ``'paper'`` (default, improved metric eq. 7) or ``'position'`` (traditional dp²).
         position_weight, orientation_weight: metric weights (orientation weight in m).
         epsilon: joint-space term ε in ``G + ε I``; None = 0 for up to 6 joints and
-            ``DEFAULT_REDUNDANT_EPSILON`` beyond (the paper's metric is singular there).
+            ``DEFAULT_REDUNDANT_EPSILON`` beyond (the paper's metric is singular there), where None
+            or 0 plans the exact line + slerp of least joint motion (its ε → 0 limit) in 'auto'.
         nodes: initial collocation mesh size.
         tol: collocation tolerance (relative residual of solve_bvp).
         path_tolerance: largest metric distance (m) allowed between the returned path and the
-            exact geodesic when that is the pulled-back task-space geodesic (non-redundant arms).
+            exact pulled-back line + slerp (6 joints; > 6: tool pose error, m and rad).
         max_nodes: mesh size limit (bounds solve time).
         ik_tolerance: allowed distance between a requested pose and the nearest reachable one.
         time_limit: wall-clock budget of one geodesic solve, s (None: unbounded).
@@ -127,11 +124,15 @@ class GeodesicPlanner:
                  path_tolerance: float = DEFAULT_PATH_TOLERANCE, max_nodes: int = 2000,
                  ik_tolerance: float | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
                  check_limits: bool = True, allow_long_way: bool = False) -> None:
+        epsilon_given = epsilon
         if epsilon is None:
             epsilon = DEFAULT_REDUNDANT_EPSILON if robot.dof > 6 else 0.0
         self.robot = robot
         self.metric = Metric(metric, float(position_weight), float(orientation_weight), float(epsilon))
         self.equations = GeodesicEquations(robot, self.metric)
+        #: Beyond 6 joints: the least-motion path with the tool exactly on line + slerp (ε None or 0).
+        self.redundant = (RedundantEquations(robot, dataclasses.replace(self.metric, epsilon=0.0))
+                          if robot.dof > 6 and metric == 'paper' and not epsilon_given else None)
         if not (isinstance(max_nodes, (int, np.integer)) and max_nodes >= 3):
             raise RequestError(f'max_nodes must be an integer >= 3, got {max_nodes!r}')
         if not (isinstance(nodes, (int, np.integer)) and 3 <= nodes <= max_nodes):
@@ -359,6 +360,13 @@ class GeodesicPlanner:
             self._check_limits(q_b, 'goal joints')
         if ik_b is not None and not self.allow_long_way:
             check_long_way(self.robot, q_a, q_b, 'the goal pose')
+        if self.redundant is not None and method == 'auto':
+            redundant = plan_redundant(self.redundant, LineTask(*self._task_line(q_a, q_b)), q_a, q_b, ik_a, ik_b,
+                                       t0=t0, path_tolerance=self.path_tolerance, max_nodes=self.max_nodes,
+                                       time_limit=self.time_limit,
+                                       check_limits=self._check_path_limits if self.check_limits else None)
+            if redundant is not None:
+                return redundant
         self.metric.check_regular(self.robot, np.stack([q_a, q_b]), ['the start', 'the goal'])
         s = np.linspace(0.0, 1.0, self.nodes)
         if method == 'collocation':
@@ -539,9 +547,10 @@ class GeodesicPlanner:
             checkpoint()
             ik_b = self._goal_ik(T, q_prev, tolerance)
             q_next = snap_same(q_prev, ik_b.q)
-            pieces.append(self._solve(q_prev, q_next, ik_a if i == 1 else None, ik_b, time.perf_counter(),
-                                      method))
-            q_prev = q_next
+            piece = self._solve(q_prev, q_next, ik_a if i == 1 else None, ik_b, time.perf_counter(), method)
+            pieces.append(piece)
+            # A redundant arm's piece chooses its own goal configuration (docs/maths.md#redundant-arms).
+            q_prev = piece.q_goal if piece.solver.method == 'redundant' else q_next
         path = PiecewiseGeodesicPath(pieces, (time.perf_counter() - t0) * 1e3)
         if not np.any(radii > 0.0) or len(path.pieces) < 2:
             return path

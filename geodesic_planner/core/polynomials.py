@@ -5,9 +5,11 @@ Shared by the paths (:class:`QuinticHermite`) and the trajectory resampler
 """
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
-__all__ = ['QuinticHermite', 'evaluate_polynomials', 'quintic_coefficients']
+__all__ = ['Interpolant', 'QuinticHermite', 'evaluate_polynomials', 'quintic_coefficients', 'split_intervals']
 
 
 def quintic_coefficients(
@@ -62,6 +64,12 @@ def evaluate_polynomials(c: np.ndarray, t: np.ndarray, times: np.ndarray, order:
 
 
 
+class Interpolant(Protocol):
+    """What a path needs of its interpolant: values and derivatives up to ``order`` (<= 2) at xs."""
+
+    def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]: ...
+
+
 class QuinticHermite:
     """C² piecewise-quintic interpolation of values, first and second derivatives at knots.
 
@@ -80,3 +88,11 @@ class QuinticHermite:
     def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]:
         """Values and derivatives up to ``order`` (<= 2) at xs (k,): list of (k, d) arrays."""
         return list(evaluate_polynomials(self._coefficients, self.x, xs, order=min(order, 2)))
+
+
+def split_intervals(s: np.ndarray, parts: np.ndarray) -> np.ndarray:
+    """Mesh s (m,) with interval i split into ``parts[i]`` (>= 1) equal parts."""
+    starts = np.cumsum(parts) - parts
+    k = np.arange(int(parts.sum())) - np.repeat(starts, parts)        # index within the interval
+    frac = k / np.repeat(parts, parts)
+    return np.concatenate([np.repeat(s[:-1], parts) + np.repeat(np.diff(s), parts) * frac, s[-1:]])

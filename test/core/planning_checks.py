@@ -197,9 +197,52 @@ def geodesic_defect(planner: GeodesicPlanner, path: Any, s: np.ndarray, h: float
     return float(np.max(excess / scale)) if inner.size else 0.0
 
 
-def check_geodesic_piece(planner: GeodesicPlanner, path: Any, what: str) -> None:
-    """Metric speed constant and both residuals small on one geodesic (a GeodesicPath)."""
+#: Relative residuals allowed on a least-motion piece of a redundant arm (finite differences).
+LEAST_MOTION_TOL = 1e-4
+
+
+def least_motion_defect(path: Any, s: np.ndarray, h: float = 1e-4) -> tuple[float, float]:
+    """Largest relative residuals of a least-motion piece (method 'redundant', docs/maths.md#redundant-arms),
+    from finite differences of the path's positions and of fk (not the library's derivatives).
+
+    Returns:
+        (Euler-Lagrange: the null-space part of q'' (q'' must be orthogonal to the null space of J)
+        against |q''| + |q'|²; the tool's twist (dp/ds, ω with ω^ = R' Rᵀ, base frame) against its
+        mean: it is constant along line + slerp).
+    """
     robot = path.robot
+    inner = s[(s > 2 * h) & (s < 1 - 2 * h)]
+    q_m, q_0, q_p = (path.evaluate(inner + d, order=0)[0] for d in (-h, 0.0, h))
+    q1 = (q_p - q_m) / (2 * h)
+    q2 = (q_p - 2 * q_0 + q_m) / h**2
+    null = np.linalg.svd(fd_jacobian12(robot, q_0))[2][:, 6:, :]      # J₁₂ has the geometric J's null space
+    # Less the round-off of the second differences (4 u |q| / h²), against |q''| + |q'|².
+    floor = 4.5e-16 * np.maximum(1.0, np.abs(q_0).max(axis=1)) / h**2
+    el = np.maximum(np.linalg.norm(np.einsum('nri,ni->nr', null, q2), axis=1) - floor, 0.0) / (
+        np.linalg.norm(q2, axis=1) + np.sum(q1 * q1, axis=1) + 1e-300)
+    T_m, T_0, T_p = (robot.fk(q) for q in (q_m, q_0, q_p))
+    W = (T_p[:, :3, :3] - T_m[:, :3, :3]) / (2 * h) @ np.swapaxes(T_0[:, :3, :3], 1, 2)
+    w = 0.5 * np.stack([W[:, 2, 1] - W[:, 1, 2], W[:, 0, 2] - W[:, 2, 0], W[:, 1, 0] - W[:, 0, 1]], axis=1)
+    V = np.concatenate([(T_p[:, :3, 3] - T_m[:, :3, 3]) / (2 * h), w], axis=1)
+    mean = V.mean(axis=0)
+    twist = max(np.abs(V - mean).max() - 4.5e-16 * max(1.0, np.abs(T_0).max()) / h, 0.0) / max(
+        float(np.linalg.norm(mean)), 1e-300)
+    return float(el.max(initial=0.0)), float(twist)
+
+
+def check_geodesic_piece(planner: GeodesicPlanner, path: Any, what: str) -> None:
+    """Metric speed constant and both residuals small on one geodesic (a GeodesicPath); on a
+    least-motion piece of a redundant arm, the residuals of least_motion_defect instead."""
+    robot = path.robot
+    if getattr(path.solver, 'method', '') == 'redundant':
+        speed = path.metric_speed(S_CHECK)
+        if path.length > 1e-6:
+            var = float(np.max(np.abs(speed - path.length)) / path.length)
+            assert var < 1e-6, f'{what}: the paper metric\'s speed varies by {var:.3g} of its mean'
+            el, twist = least_motion_defect(path, S_CHECK)
+            assert el < LEAST_MOTION_TOL, f'{what}: Euler-Lagrange residual (finite differences) {el:.3g}'
+            assert twist < LEAST_MOTION_TOL, f'{what}: the tool\'s twist varies by {twist:.3g} of its mean'
+        return
     q, dq, ddq, _ = path.evaluate(S_CHECK)
     speed = planner.metric.speed(robot, q, dq)
     L = path.length

@@ -167,8 +167,11 @@ def test_seven_joints_need_epsilon():
     with pytest.raises(SingularMetricError, match='more than 6 joints: use epsilon > 0'):
         Metric().check_regular(robot, q)
     Metric(epsilon=1e-3).check_regular(robot, q)
+    # epsilon = 0 leaves the collocation route singular; 'auto' plans the exact line instead.
+    planner = GeodesicPlanner(robot, epsilon=0.0)
     with pytest.raises(SingularMetricError, match='singular'):
-        GeodesicPlanner(robot, epsilon=0.0).plan(None, None, start_joints=q, goal_joints=q + 0.1)
+        planner.plan(None, None, start_joints=q, goal_joints=q + 0.1, method='collocation')
+    assert planner.plan(None, None, start_joints=q, goal_joints=q + 0.1).solver.method == 'redundant'
 
 
 # Deterministic regressions found by the fuzzer (test_fuzz.py): exception type and cause.
