@@ -22,9 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cancel import checkpoint
-from .errors import LineLimitError, LineUnreachableError, PathFollowError
+from .errors import LineUnreachableError, PathFollowError
 from .ik import gauss_newton_batch
 from .kinematics import Chain
+from .limits import line_limit_error
+from .pullback import EXACT_GUESS_RESIDUAL
 from .transforms import line_slerp
 
 #: First step, fraction of the line.
@@ -39,8 +41,6 @@ MAX_JOINT_STEP = 0.1
 #: grow without bound (the joints flip); a line that a joint needs more than this for is not
 #: followed. Ordinary moves need a few rad per line at most.
 MAX_JOINT_RATE = 50.0
-#: A step is exact when the weighted embedding residual is below this (m), as the fast route.
-EXACT_RESIDUAL = 1e-10
 #: Points per step at which the joints are checked against their limits.
 LIMIT_CHECKS = 8
 #: Smallest singular value of the geometric Jacobian, relative to its largest, under which a
@@ -97,10 +97,10 @@ def follow_line(robot: Chain, q_a: np.ndarray, T_a: np.ndarray, T_b: np.ndarray,
         q_new, res, _, _ = gauss_newton_batch(
             robot, target, seed[None], position_weight=position_weight,
             orientation_weight=orientation_weight, max_iterations=8,
-            residual_tol=0.1 * EXACT_RESIDUAL, within_limits=False)
+            residual_tol=0.1 * EXACT_GUESS_RESIDUAL, within_limits=False)
         q_new = q_new[0]
         step = np.abs(q_new - q)
-        if (np.isfinite(res[0]) and res[0] < EXACT_RESIDUAL
+        if (np.isfinite(res[0]) and res[0] < EXACT_GUESS_RESIDUAL
                 and step.max() <= min(MAX_JOINT_STEP, MAX_JOINT_RATE * ds)):
             rate_new = _rate(robot, q_new, target[0, :3, :3], dp, w_body)
             crossing = _limit_crossing(robot, q, q_new, rate, rate_new, s, ds)
@@ -163,13 +163,9 @@ def _percent(fraction: float) -> str:
 def _limit_error(robot: Chain, q: np.ndarray, crossing: tuple[float, int], T_a: np.ndarray,
                  T_b: np.ndarray, w_body: np.ndarray) -> PathFollowError:
     fraction, j = crossing
-    joint = robot.joint_names[j]
     bound = robot.upper[j] if q[j] + 1e-12 >= 0.5 * (robot.lower[j] + robot.upper[j]) else robot.lower[j]
-    p = line_slerp(T_a, T_b, np.array([fraction]), w_body)[0, :3, 3]
-    return LineLimitError(
-        f'the straight line cannot be followed by robot {robot.name!r}: joint {joint!r} would pass '
-        f'its limit {bound:.6g} at {_percent(fraction)} of the way (tool at {p[0]:.4f}, {p[1]:.4f}, '
-        f'{p[2]:.4f} m); followable fraction {fraction:.4f}', fraction=fraction)
+    return line_limit_error(robot, j, float(bound), fraction,
+                            line_slerp(T_a, T_b, np.array([fraction]), w_body)[0, :3, 3])
 
 
 def _stop_error(robot: Chain, q: np.ndarray, fraction: float) -> PathFollowError:

@@ -28,17 +28,19 @@ import numpy as np
 
 from .cancel import checkpoint
 from .continuation import LineFollow, follow_line
-from .errors import BVPError, LimitError, LineLimitError, RequestError, SingularMetricError
+from .errors import BVPError, LimitError, RequestError, SingularMetricError
 from .geodesic import (GeodesicEquations, GeodesicPath, SolverReport, collocation_rms, interpolation_error,
                        solve_geodesic_bvp)
-from .ik import IKSolution, dls_batch, gauss_newton_batch, nearest_branch, nearest_turn, solve_ik
-from .kinematics import Chain, embed12
+from .ik import IKSolution, nearest_turn, solve_ik
+from .kinematics import Chain
+from .limits import check_joint_limits, check_path_limits
 from .long_way import LONG_WAY_EXCESS, check_long_way, long_way_excess
 from .metric import DEFAULT_REDUNDANT_EPSILON, Metric
+from .pullback import pulled_back_line
 from .polynomials import QuinticHermite, split_intervals
 from .redundant import LineTask, RedundantEquations
 from .redundant_solve import plan_redundant
-from .transforms import check_transform, hat, line_slerp, so3_log
+from .transforms import check_transform, line_slerp, so3_log
 
 if TYPE_CHECKING:
     from .blend import BlendedPath
@@ -51,16 +53,12 @@ DEFAULT_TOL = 1e-5
 SAME_JOINTS = 1e-12
 #: Start and goal poses closer than this (every matrix entry) are the same pose.
 SAME_POSE = 1e-12
-#: Joint positions may exceed their limits by this much (round-off), rad or m.
-LIMIT_SLACK = 1e-9
 #: Steps of the line-following goal IK used when the start joints alone do not seed the goal.
 GOAL_CONTINUATION_STEPS = 16
 #: Default wall-clock budget of one geodesic solve, s.
 DEFAULT_TIME_LIMIT = 10.0
 #: Default number of initial mesh nodes.
 DEFAULT_NODES = 11
-#: Task-space IK residual below which the line + slerp guess counts as exactly reachable.
-EXACT_GUESS_RESIDUAL = 1e-10
 #: Pre-sized meshes aim at this fraction of the solver tolerance (room for the Newton step).
 PRESIZE_MARGIN = 0.5
 #: Default largest distance (m, in the metric) between the returned path and the exact geodesic
@@ -69,9 +67,6 @@ DEFAULT_PATH_TOLERANCE = 1e-9
 #: Mesh refinement rounds of the pulled-back path before falling back to collocation (most
 #: paths need one or two; a line close to a singularity, up to five).
 PULLBACK_ROUNDS = 6
-#: Largest distance of a mesh node's IK solution from its seed on a followed branch, rad or m
-#: (the continuation's samples are at most 0.1 apart: beyond this the node left the branch).
-MAX_SEED_DRIFT = 0.2
 #: A refined interval aims at this fraction of path_tolerance.
 PULLBACK_AIM = 0.1
 #: Values of ``method``: 'auto' (the pull-back where it applies, else collocation) or
@@ -239,56 +234,13 @@ class GeodesicPlanner:
     def initial_guess(self, q_a: np.ndarray, q_b: np.ndarray, s: np.ndarray,
                       seeds: np.ndarray | None = None, *, on_branch: bool = False
                       ) -> tuple[np.ndarray, np.ndarray, bool]:
-        """Initial q, q' at the mesh s: task-space line + slerp pulled back by batched IK.
-
-        Returns (q, q', exact): ``exact`` is True when the line + slerp is reachable at every node
-        and ε = 0; then the guess is the geodesic itself (an ambient geodesic lying in the reachable
-        set is a geodesic of the pull-back metric). Falls back to joint-space linear interpolation
-        (exact = False) if the pull-back jumps branches: a node step far beyond the joint line's,
-        or, with ``on_branch`` (``seeds`` sampled from one continuous branch, e.g. the line
-        followed by continuation), a node that left its seed by more than MAX_SEED_DRIFT.
-        """
-        robot = self.robot
-        q_lin = q_a + s[:, None] * (q_b - q_a)
-        v_lin = np.broadcast_to(q_b - q_a, q_lin.shape).copy()
+        """Initial q, q' at the mesh s: the line + slerp between FK(q_a) and FK(q_b) pulled back
+        (:func:`~.pullback.pulled_back_line`, which says when it is ``exact``: the geodesic)."""
         if np.all(np.abs(q_b - q_a) <= 1e-8 + 1e-5 * np.abs(q_a)):   # np.allclose, without its overhead
-            return q_lin, v_lin, True
-        wp = self.metric.position_weight
-        wo = self.metric.effective_orientation_weight
-        T_a, T_b, w_body = self._task_line(q_a, q_b)
-        targets = line_slerp(T_a, T_b, s, w_body)
-        seeds = q_lin.copy() if seeds is None else np.array(seeds, dtype=float)
-        if robot.closed_form_ik is not None:
-            closed = nearest_branch(robot.closed_form_ik(targets), seeds)
-            seeds = np.where(np.isnan(closed[:, :1]), seeds, closed)
-        seeds[0], seeds[-1] = q_a, q_b
-        # Gauss-Newton first (cheap, converges in a few steps from close seeds); damped least
-        # squares for whatever it leaves (far seeds, unreachable nodes).
-        q_g, res, X, T = gauss_newton_batch(robot, targets, seeds, position_weight=wp,
-                                            orientation_weight=wo or 1.0, max_iterations=6,
-                                            residual_tol=0.1 * EXACT_GUESS_RESIDUAL)
-        if not np.all(res < EXACT_GUESS_RESIDUAL):
-            q_g, res, _ = dls_batch(robot, targets, seeds, position_weight=wp,
-                                    orientation_weight=wo or 1.0, max_iterations=15)
-            X, T = robot.generators(q_g)
-        q_g[0], q_g[-1] = q_a, q_b
-        if on_branch:
-            jump = np.abs(q_g - seeds).max() > MAX_SEED_DRIFT
-        else:
-            jump = np.abs(np.diff(q_g, axis=0)).max() > 3.0 * np.abs(np.diff(q_lin, axis=0)).max() + 0.05
-        if not np.all(np.isfinite(q_g)) or jump:
-            return q_lin, v_lin, False
-        exact = bool(np.all(res < EXACT_GUESS_RESIDUAL)) and self.metric.epsilon == 0.0
-        # q' = least-squares pull-back of the task velocity (exact on the task geodesic).
-        fdot = np.zeros((s.size, 4, 4))
-        fdot[:, :3, :3] = targets[:, :3, :3] @ hat(w_body)
-        fdot[:, :3, 3] = T_b[:3, 3] - T_a[:3, 3]
-        wts = np.concatenate([np.full(3, wp), np.full(9, wo)])
-        J = embed12(X @ T[:, None]).transpose(0, 2, 1) * wts[:, None]
-        rhs = np.einsum('nki,nk->ni', J, embed12(fdot) * wts)
-        A = np.einsum('nki,nkj->nij', J, J) + (self.metric.epsilon + 1e-12) * np.eye(robot.dof)
-        v_g = np.linalg.solve(A, rhs[..., None])[..., 0]
-        return q_g, v_g, exact
+            return (q_a + s[:, None] * (q_b - q_a), np.broadcast_to(q_b - q_a, (s.size, q_a.size)).copy(),
+                    True)
+        return pulled_back_line(self.robot, self.metric, q_a, q_b, s, self._task_line(q_a, q_b), seeds,
+                                on_branch=on_branch)
 
     # ------------------------------------------------------------------ plan
     def plan(self, start: np.ndarray | None, goal: np.ndarray | None, start_joints: object = None,
@@ -321,50 +273,18 @@ class GeodesicPlanner:
         """Geodesic between two joint configurations (``method`` as in :meth:`plan`)."""
         return self.plan(None, None, start_joints=q_a, goal_joints=q_b, method=method)
 
-    def _check_limits(self, q: np.ndarray, what: str) -> None:
-        """Raise LimitError if joint positions q (dof,) lie outside the robot's limits."""
-        r = self.robot
-        bad = np.nonzero((q < r.lower - LIMIT_SLACK) | (q > r.upper + LIMIT_SLACK))[0]
-        if bad.size:
-            i = int(bad[0])
-            raise LimitError(f'{what}: joint {r.joint_names[i]!r} = {q[i]:.6g} is outside its limits '
-                             f'[{r.lower[i]:.6g}, {r.upper[i]:.6g}]')
-
-    def _check_path_limits(self, path: GeodesicPath) -> None:
-        """Raise LimitError if the path leaves the position limits (mesh nodes and 3 points
-        between each pair of nodes of its spline)."""
-        r = self.robot
-        nodes = path.s_nodes
-        between = nodes[:-1, None] + np.diff(nodes)[:, None] * np.array([0.25, 0.5, 0.75])
-        s = np.concatenate([nodes, between.ravel()])
-        q = path.evaluate(s, order=0)[0]
-        out = (q < r.lower - LIMIT_SLACK) | (q > r.upper + LIMIT_SLACK)
-        if np.any(out):
-            order = np.argsort(s)
-            k = int(order[np.argmax(np.any(out[order], axis=1))])      # the first place out
-            i = int(np.argmax(out[k]))
-            if path.solver.method == 'pullback':    # the path is the line: say where, as a fraction
-                bound = r.upper[i] if q[k, i] > r.upper[i] else r.lower[i]
-                x, y, z = self.robot.fk(q[k])[:3, 3]
-                raise LineLimitError(
-                    f'the straight line cannot be followed by robot {r.name!r}: joint {r.joint_names[i]!r} '
-                    f'would pass its limit {bound:.6g} at {100.0 * s[k]:.3g} % of the way (tool at '
-                    f'{x:.4f}, {y:.4f}, {z:.4f} m); followable fraction {s[k]:.4f}', fraction=float(s[k]))
-            raise LimitError(f'the geodesic leaves the joint limits: joint {r.joint_names[i]!r} reaches '
-                             f'{q[k, i]:.6g} at s = {s[k]:.3f} (limits [{r.lower[i]:.6g}, {r.upper[i]:.6g}])')
-
     def _solve(self, q_a: np.ndarray, q_b: np.ndarray, ik_a: IKSolution | None,
                ik_b: IKSolution | None, t0: float, method: str = 'auto') -> GeodesicPath:
         if self.check_limits:
-            self._check_limits(q_a, 'start joints')
-            self._check_limits(q_b, 'goal joints')
+            check_joint_limits(self.robot, q_a, 'start joints')
+            check_joint_limits(self.robot, q_b, 'goal joints')
         if ik_b is not None and not self.allow_long_way:
             check_long_way(self.robot, q_a, q_b, 'the goal pose')
         if self.redundant is not None and method == 'auto':
             redundant = plan_redundant(self.redundant, LineTask(*self._task_line(q_a, q_b)), q_a, q_b, ik_a, ik_b,
                                        t0=t0, path_tolerance=self.path_tolerance, max_nodes=self.max_nodes,
                                        time_limit=self.time_limit,
-                                       check_limits=self._check_path_limits if self.check_limits else None)
+                                       check_limits=self._path_limits if self.check_limits else None)
             if redundant is not None:
                 return redundant
         self.metric.check_regular(self.robot, np.stack([q_a, q_b]), ['the start', 'the goal'])
@@ -390,7 +310,7 @@ class GeodesicPlanner:
             path = self._pullback_path(q_a, q_b, s, q_g, v_g, ik_a, ik_b, t0, follow)
             if path is not None:
                 if self.check_limits:
-                    self._check_path_limits(path)
+                    check_path_limits(self.robot, path)
                 return path
             s, q_g, v_g = self._presize_mesh(q_a, q_b, s, q_g, v_g)
         try:
@@ -401,12 +321,15 @@ class GeodesicPlanner:
                                (time.perf_counter() - t0) * 1e3, rep.bc_residual)
             path = GeodesicPath(self.equations, s_sol, q_sol, v_sol, rep, ik_a, ik_b, a_sol)
             if self.check_limits:
-                self._check_path_limits(path)
+                check_path_limits(self.robot, path)
         except (BVPError, SingularMetricError, LimitError) as err:
             if line_error is not None:       # the line's reason and place, not the solver's words
                 raise line_error from err
             raise
         return path
+
+    def _path_limits(self, path: GeodesicPath) -> None:
+        check_path_limits(self.robot, path)
 
     def _line_is_geodesic(self) -> bool:
         """True where the geodesic between two poses is the line + slerp whenever it can be

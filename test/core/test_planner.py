@@ -603,8 +603,8 @@ def _no_pullback(planner: GeodesicPlanner, monkeypatch: pytest.MonkeyPatch) -> N
     def refuse(*args: Any, **kwargs: Any) -> Any:
         raise AssertionError('IK at the mesh nodes with method="collocation"')
     monkeypatch.setattr(planner, 'initial_guess', refuse)
-    monkeypatch.setattr('geodesic_planner.core.planner.gauss_newton_batch', refuse)
-    monkeypatch.setattr('geodesic_planner.core.planner.dls_batch', refuse)
+    monkeypatch.setattr('geodesic_planner.core.pullback.gauss_newton_batch', refuse)
+    monkeypatch.setattr('geodesic_planner.core.pullback.dls_batch', refuse)
 
 
 @pytest.mark.parametrize('robot_name', ['planar_3r', 'ur5e'])
