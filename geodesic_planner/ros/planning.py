@@ -161,7 +161,7 @@ class PlanResult:
     #: ms per stage: 'plan' (library), 'timing' (timed + sample), 'trajectory' (message and
     #: its validation), 'publish' (on_trajectory), 'tool path' (fk, Path and markers)
     stage_ms: dict[str, float]
-    #: SolverReport.method ('pullback' or 'collocation') and mesh size
+    #: SolverReport.method ('pullback', 'redundant' or 'collocation') and mesh size
     solver_method: str = ''
     mesh_size: int = 0
     #: largest distance of the tool from the straight segment(s), m (outside any blend zone)
