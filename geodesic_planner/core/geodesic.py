@@ -22,7 +22,7 @@ from scipy.integrate import solve_bvp
 
 from .cancel import checkpoint
 from .errors import BVPError, SingularMetricError
-from .kinematics import Chain
+from .kinematics import Chain, taylor3
 from .metric import Metric
 from .path import JointPath, check_order, check_s
 from .polynomials import Interpolant, QuinticHermite
@@ -147,15 +147,7 @@ class GeodesicEquations:
         """
         q, X, T, Y, YO, G, W, C = self._terms(q, v)
         # Taylor coefficients c1, c2, c3 of e^{W_1 t} ... e^{W_n t} (pose derivatives d! c_d T).
-        c1 = np.zeros(T.shape)
-        c2 = np.zeros(T.shape)
-        c3 = np.zeros(T.shape)
-        for k in range(self.robot.dof):
-            Wk = W[:, k]
-            Wk2 = Wk @ Wk
-            c3 = c3 + c2 @ Wk + c1 @ Wk2 / 2.0 + Wk2 @ Wk / 6.0
-            c2 = c2 + c1 @ Wk + Wk2 / 2.0
-            c1 = c1 + Wk
+        _, c2, c3 = taylor3(W)
         H = 2.0 * c2 @ T
         T3 = 6.0 * c3 @ T
         a = self._solve(G, -np.einsum('nixy,nxy->ni', YO, H)[..., None], q)[..., 0]

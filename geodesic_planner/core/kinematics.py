@@ -318,6 +318,24 @@ class Chain:
         return embed12(S @ T).reshape(q.shape[:-1] + (12,))
 
 
+def taylor3(W: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Taylor coefficients c1, c2, c3 of the product e^{W_1 t} ... e^{W_n t} at t = 0.
+
+    W: (N, n, 4, 4), the joints' generators times their rates (``X * v``). The d-th derivative
+    of the pose along the motion is d! c_d T. Returns three (N, 4, 4) arrays.
+    """
+    c1 = np.zeros(W.shape[:1] + W.shape[2:])
+    c2 = np.zeros_like(c1)
+    c3 = np.zeros_like(c1)
+    for k in range(W.shape[1]):
+        Wk = W[:, k]
+        Wk2 = Wk @ Wk
+        c3 = c3 + c2 @ Wk + c1 @ Wk2 / 2.0 + Wk2 @ Wk / 6.0
+        c2 = c2 + c1 @ Wk + Wk2 / 2.0
+        c1 = c1 + Wk
+    return c1, c2, c3
+
+
 def embed12(M: np.ndarray) -> np.ndarray:
     """The 12-vector (p, n, o, a) of 4x4 matrices (..., 4, 4): columns 3, 0, 1, 2 of the top 3 rows."""
     return np.concatenate([M[..., :3, 3], M[..., :3, 0], M[..., :3, 1], M[..., :3, 2]], axis=-1)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kinematics import Chain
+from .kinematics import Chain, taylor3
 from .metric import Metric
 from .transforms import line_slerp, so3_log
 
@@ -132,15 +132,7 @@ class RedundantEquations:
         J = self.jacobian(X, T)
         A = J @ J.transpose(0, 2, 1)
         W = X * v[..., None, None]
-        c1 = np.zeros(T.shape)
-        c2 = np.zeros(T.shape)
-        c3 = np.zeros(T.shape)
-        for k in range(self.robot.dof):
-            Wk = W[:, k]
-            Wk2 = Wk @ Wk
-            c3 = c3 + c2 @ Wk + c1 @ Wk2 / 2.0 + Wk2 @ Wk / 6.0
-            c2 = c2 + c1 @ Wk + Wk2 / 2.0
-            c1 = c1 + Wk
+        c1, c2, c3 = taylor3(W)
         # J̇ q' from c2 (the second-order term is 2 c2 T), then q'' = Jᵀ μ.
         mu = -solve6(A, np.concatenate([_point(2.0 * c2, T), skew_vee(2.0 * c2[:, :3, :3])], axis=-1))
         a = np.einsum('nki,nk->ni', J, mu)

@@ -11,18 +11,13 @@ start drawn within the limits away from singularities and the goal pose of a nea
 from __future__ import annotations
 
 import os
-import re
 
 import numpy as np
-import pin_oracle as P
 import pytest
 import urdf_util as U
-from planning_checks import CAUSES, check_path, check_trajectory
-from test_real_arm_moves import MAX_ORACLE_STEP, MOVES, ORACLE_STEPS, random_move
-from test_real_arms import ARMS as REAL_ARMS
-from test_real_arms import arm as real_arm
+from planning_checks import check_path, check_trajectory
 
-from geodesic_planner import GeodesicPlanner, GeodesicPlannerError, load_robot
+from geodesic_planner import GeodesicPlanner, load_robot
 from geodesic_planner.core.kinematics import REVOLUTE, chain_from_dh
 from geodesic_planner.core.metric import Metric
 from geodesic_planner.core.redundant import LineTask, RedundantEquations
@@ -346,42 +341,3 @@ def test_continuation_seeds_a_second_try(monkeypatch):
     assert calls and path.solver.method == 'redundant'
     dp, dr = tool_errors(U.panda_fk_batch, path, T_a, T_b)
     assert dp <= EXACT and dr <= EXACT, (dp, dr)
-
-
-# ---------------------------------------------------------------------- the real 7-joint arms
-#: Followable for the 7-joint test: the oracle's continuation keeps the Jacobian's smallest
-#: singular value at or above this. Closer to a singularity the least-motion path can turn too
-#: sharply for the solver (2 of 106 followable real-arm moves, at 1.2e-3 and 1.8e-3), and the
-#: planner falls back to the collocation of G + εI.
-MIN_SIGMA_7 = 5e-3
-
-
-@pytest.mark.parametrize('key', ['panda', 'xarm7', 'kuka_iiwa14'])
-def test_real_seven_joint_arms_random_moves(key):
-    """The corpus' 7-joint URDFs (test_real_arms.py), random moves as test_real_arm_moves.py draws
-    them: every move the oracle can follow (pinocchio Newton continuation over 1000 steps, no flip,
-    within the limits, σ_min >= MIN_SIGMA_7) is planned by the least-motion path with line and
-    slerp errors <= 1e-8 by pinocchio's FK; refusals name their cause."""
-    _, base, tip, _ = REAL_ARMS[key]
-    _, robot, m = real_arm(key)
-    kin = P.Kinematics(m, robot.joint_names, base, tip)
-    planner = GeodesicPlanner(robot)
-    rng = np.random.default_rng(sum(map(ord, key)))
-    s = np.linspace(0.0, 1.0, 201)
-    for _ in range(MOVES):
-        q_a, q_b = random_move(robot, rng)
-        T_a, T_b = kin.pose_and_jacobian(q_a)[0], kin.pose_and_jacobian(q_b)[0]
-        qs, sigma, step = P.follow(kin, q_a, T_b, ORACLE_STEPS)
-        inside = np.all((qs >= robot.lower - 1e-9) & (qs <= robot.upper + 1e-9))
-        followable = bool(np.all(np.isfinite(qs)) and sigma >= MIN_SIGMA_7 and step <= MAX_ORACLE_STEP and inside)
-        try:
-            path = planner.plan(None, T_b, start_joints=q_a)
-        except GeodesicPlannerError as err:
-            assert not followable, f'{key}: followable move refused: {err}'
-            pattern = next(p for k, p in CAUSES.items() if isinstance(err, k))
-            assert re.search(pattern, str(err)), f'{key}: refusal without its cause: {err}'
-            continue
-        if followable:
-            assert path.solver.method == 'redundant', (key, q_a.tolist(), q_b.tolist(), path.solver.message)
-            dp, dr = P.line_errors(m, robot.joint_names, base, tip, path.evaluate(s, order=0)[0], s, T_a, T_b)
-            assert dp <= EXACT and dr <= EXACT, (key, q_a.tolist(), q_b.tolist(), dp, dr)
