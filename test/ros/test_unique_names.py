@@ -113,26 +113,39 @@ def test_namesake_discovered_late_stops_the_younger(helper: Any, tmp_path: Path,
         assert first.stop() == 0, first.log_text()
 
 
-def test_equal_start_times_tie_break_by_id(helper: Any) -> None:
-    """Two guards of one name with the same start time: exactly the larger id stops, on both sides."""
+def test_equal_start_times_tie_break_by_id() -> None:
+    """Two guards of one name with the same start time, each in a participant of its own (as two
+    processes are): exactly the larger id stops, and the other one has seen its claim and stays."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    ns = '/tie'
-    nodes = [Node('twin', namespace=ns, context=helper.context) for _ in range(2)]
+    contexts = [rclpy.Context() for _ in range(2)]
+    for context in contexts:
+        rclpy.init(context=context)
+    nodes = [Node('twin', namespace='/tie', context=c) for c in contexts]
+    executors = [SingleThreadedExecutor(context=c) for c in contexts]
     stops = [threading.Event() for _ in nodes]
+    threads = []
     try:
         guards = [UniqueNameGuard(n, stop, start_ns=1_700_000_000_123_456_789)
                   for n, stop in zip(nodes, stops)]
         younger = max(range(2), key=lambda i: guards[i].instance_id)
-        for n in nodes:
-            helper.executor.add_node(n)
+        for node, executor in zip(nodes, executors):
+            executor.add_node(node)
+            threads.append(threading.Thread(target=executor.spin, daemon=True))
+            threads[-1].start()
         wait_until(stops[younger].is_set, DEADLINE, what='the larger id to stop')
         assert guards[younger].refusal is not None and 'another node named /tie/twin' in guards[younger].refusal
-        # the older side has seen the claim too, and stays
         wait_until(lambda: guards[1 - younger].namesakes_seen == 1, DEADLINE,
                    what='the smaller id to see the other claim')
         assert not stops[1 - younger].is_set() and guards[1 - younger].refusal is None
     finally:
-        for n in nodes:
-            helper.executor.remove_node(n)
-            n.destroy_node()
+        for executor in executors:
+            executor.shutdown(timeout_sec=2.0)
+        for thread in threads:
+            thread.join(timeout=5.0)
+        for node in nodes:
+            node.destroy_node()
+        for context in contexts:
+            context.try_shutdown()
