@@ -28,6 +28,7 @@ from ..timing.validate import trajectory_problems
 #: (:mod:`geodesic_planner.core.cancel`): about 15 ms of work on the 2-core machine.
 CHECK_EVERY = 1000
 
+
 @dataclass(frozen=True)
 class TrajectoryArrays:
     """A joint trajectory as arrays: times (N,) in s; positions/velocities/accelerations (N, dof)."""
