@@ -140,7 +140,7 @@ class CollisionModel:
         self._offset = np.array([b.offset for b in self._bodies]).reshape(-1, 4, 4)
         self._center = np.array([b.center for b in self._bodies]).reshape(-1, 3)
         self._radius = np.array([b.radius for b in self._bodies])
-        self._reach = self._reaches()
+        self._relative_reach = self._pair_reaches()
         self._distance_fns: dict[int, Any] = {}
         self._request = coal.DistanceRequest()
         self._result = coal.DistanceResult()
@@ -211,6 +211,20 @@ class CollisionModel:
                 return 'adjacent links (one joint apart)'
             return self._disabled.get(pair_key(a.name, b.name), '')
         return ''
+
+    def _pair_reaches(self) -> np.ndarray:
+        """(pairs, dof): how fast each pair's distance can change per unit joint speed.
+
+        A distance does not change when both bodies move together, so only the joints between
+        the two segments count: in the frame of the lower segment, the body on the higher one
+        moves, joint j (beyond the lower segment) contributing ``reach[j]`` per rad/s.
+        """
+        reach = self._reaches()
+        seg = self._segment
+        lo = np.minimum(seg[self._ia], seg[self._ib])
+        hi_body = np.where(seg[self._ia] >= seg[self._ib], self._ia, self._ib)
+        joints = np.arange(1, self.robot.dof + 1)
+        return reach[hi_body] * (joints[None, :] > lo[:, None])
 
     def _reaches(self) -> np.ndarray:
         """(bodies, dof): speed of any point of each body per unit joint speed (m/rad, or 1 m/m)."""
@@ -329,8 +343,7 @@ class CollisionModel:
         T = float(duration)
         if self._ia.size == 0:
             return MotionClearance(math.inf, ('', ''), 0.0, 0.0, 0)
-        rate = self._reach @ speed                            # (bodies,) m/s
-        R = rate[self._ia] + rate[self._ib]                   # (pairs,) m/s
+        R = self._relative_reach @ speed                      # (pairs,) m/s
         pad, tol = self.padding, RESOLUTION
         times = np.linspace(0.0, T, 9) if T > 0.0 else np.zeros(1)
         qs, s = positions(times)
