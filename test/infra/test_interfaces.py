@@ -65,7 +65,7 @@ def test_scene_types_import_with_their_fields() -> None:
     """CollisionObject and the three scene services are built, with the promised fields (in order)."""
     code = ('import importlib, json\n'
             'out = {}\n'
-            'for name in %r:\n'
+            'for name in NAMES:\n'
             '    kind, typ = name.split("/")\n'
             '    cls = getattr(importlib.import_module("geodesic_planner_interfaces." + kind), typ)\n'
             '    if kind == "msg":\n'
@@ -75,7 +75,7 @@ def test_scene_types_import_with_their_fields() -> None:
             '                     list(cls.Response.get_fields_and_field_types())]\n'
             'obj = getattr(importlib.import_module("geodesic_planner_interfaces.msg"), "CollisionObject")()\n'
             'out["types"] = obj.get_fields_and_field_types()\n'
-            'print(json.dumps(out))\n') % sorted(SCENE_TYPES)
+            'print(json.dumps(out))\n').replace('NAMES', repr(sorted(SCENE_TYPES)))
     env = {'PATH': '/usr/bin:/bin', 'HOME': os.environ.get('HOME', '/tmp')}
     result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120, env=env)
     assert result.returncode == 0, result.stderr[-3000:]
