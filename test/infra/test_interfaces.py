@@ -15,9 +15,17 @@ ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / 'geodesic_planner_interfaces'
 
 #: The error codes the service promises (values follow moveit_msgs/MoveItErrorCodes where it has them).
-CODES = {'SUCCESS': 1, 'PLANNING_FAILED': -1, 'TIMED_OUT': -6, 'FRAME_TRANSFORM_FAILURE': -21,
+CODES = {'SUCCESS': 1, 'PLANNING_FAILED': -1, 'INVALID_MOTION_PLAN': -2, 'TIMED_OUT': -6,
+         'START_STATE_IN_COLLISION': -10, 'GOAL_IN_COLLISION': -12, 'FRAME_TRANSFORM_FAILURE': -21,
          'NO_IK_SOLUTION': -31, 'INVALID_REQUEST': -101, 'START_STATE_MISMATCH': -102,
          'JOINT_LIMITS_VIOLATED': -103}
+#: The scene's message and services: type name -> its fields (request and response for a service).
+SCENE_TYPES = {
+    'msg/CollisionObject': ['id', 'attached', 'pose', 'primitive', 'mesh', 'mesh_resource', 'mesh_scale'],
+    'srv/SetCollisionObject': [['object'], ['success', 'message']],
+    'srv/RemoveCollisionObject': [['id'], ['success', 'message']],
+    'srv/ListCollisionObjects': [[], ['objects']],
+}
 
 
 def _constants(text: str) -> dict[str, int]:
@@ -49,8 +57,34 @@ def test_built_package_imports_with_no_ros_environment() -> None:
                                      'blend_radius'])
     assert out['response'] == sorted(['error_code', 'message', 'trajectory', 'tool_path', 'solver_method',
                                       'path_error', 'planning_time', 'blend_deviation',
-                                      'fraction'])
+                                      'fraction', 'min_clearance', 'ik_branch'])
     assert out['execute'] is False and out['code'] == 0
+
+
+def test_scene_types_import_with_their_fields() -> None:
+    """CollisionObject and the three scene services are built, with the promised fields (in order)."""
+    code = ('import importlib, json\n'
+            'out = {}\n'
+            'for name in NAMES:\n'
+            '    kind, typ = name.split("/")\n'
+            '    cls = getattr(importlib.import_module("geodesic_planner_interfaces." + kind), typ)\n'
+            '    if kind == "msg":\n'
+            '        out[name] = list(cls.get_fields_and_field_types())\n'
+            '    else:\n'
+            '        out[name] = [list(cls.Request.get_fields_and_field_types()),\n'
+            '                     list(cls.Response.get_fields_and_field_types())]\n'
+            'obj = getattr(importlib.import_module("geodesic_planner_interfaces.msg"), "CollisionObject")()\n'
+            'out["types"] = obj.get_fields_and_field_types()\n'
+            'print(json.dumps(out))\n').replace('NAMES', repr(sorted(SCENE_TYPES)))
+    env = {'PATH': '/usr/bin:/bin', 'HOME': os.environ.get('HOME', '/tmp')}
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120, env=env)
+    assert result.returncode == 0, result.stderr[-3000:]
+    import json
+    out = json.loads(result.stdout.strip().splitlines()[-1])
+    assert out.pop('types') == {'id': 'string', 'attached': 'boolean', 'pose': 'geometry_msgs/Pose',
+                                'primitive': 'shape_msgs/SolidPrimitive', 'mesh': 'shape_msgs/Mesh',
+                                'mesh_resource': 'string', 'mesh_scale': 'geometry_msgs/Vector3'}
+    assert out == SCENE_TYPES
 
 
 @pytest.mark.ros

@@ -22,8 +22,9 @@ KEYS = {
     'ament_flake8': 'ament_flake8', 'ament_pep257': 'ament_pep257',
     'launch': 'launch', 'launch_ros': 'launch_ros', 'pinocchio': 'pinocchio', 'coal': 'coal',
     **{pkg: pkg for pkg in ('rclpy', 'builtin_interfaces', 'rcl_interfaces', 'diagnostic_msgs',
-                            'geometry_msgs', 'nav_msgs', 'sensor_msgs', 'std_msgs', 'trajectory_msgs',
-                            'visualization_msgs', 'geodesic_planner_interfaces')},
+                            'geometry_msgs', 'nav_msgs', 'sensor_msgs', 'shape_msgs', 'std_msgs',
+                            'trajectory_msgs', 'visualization_msgs', 'geodesic_planner_interfaces',
+                            'ament_index_python')},
 }
 #: Imported modules without a rosdep key: package.xml must name them in a comment.
 PIP_ONLY = {'mcap', 'lz4', 'zstandard'}
