@@ -96,14 +96,16 @@ def first_clear(attempt: Callable[[np.ndarray | None], tuple[Any, Any]], model: 
             raise
         first = err
     others = branches(path)
+    reasons: list[str] = []
     for k, q in enumerate(others, start=2):
         try:
             path, trajectory = attempt(q)
             return path, trajectory, check_trajectory(model, trajectory), f'{k} of {len(others) + 1}'
-        except GeodesicPlannerError:
-            continue
+        except GeodesicPlannerError as err:
+            reasons.append(f'branch {k}: {err}')
+    shown = '; '.join(r[:200] for r in reasons[:3])
     first.args = (f'{first.args[0]}; no other IK branch of the start pose is free '
-                  f'({len(others)} more tried)',)
+                  f'({len(others)} more tried{": " + shown if shown else ""})',)
     raise first
 
 

@@ -352,7 +352,8 @@ class CollisionModel:
         self._stop_at_ends(D, times, np.asarray(s, dtype=float))
         ta, tb, Da, Db = times[:-1], times[1:], D[:-1], D[1:]
         checks = len(times)
-        first = math.inf
+        grid_hit = np.any(pad + tol >= D, axis=1)
+        first = float(times[grid_hit].min()) if grid_hit.any() else math.inf
         while ta.size:
             checkpoint()
             unsafe = np.any(Da + Db - R * (tb - ta)[:, None] <= 2.0 * pad, axis=1) & (ta < first)
@@ -372,9 +373,9 @@ class CollisionModel:
             hit = np.any(Dm <= pad + tol, axis=1)
             if hit.any():
                 first = min(first, float(tm[hit].min()))
-            keep = ~hit
-            ta, tb = np.concatenate([ta[keep], tm[keep]]), np.concatenate([tm[keep], tb[keep]])
-            Da, Db = np.concatenate([Da[keep], Dm[keep]]), np.concatenate([Dm[keep], Db[keep]])
+            keep = ~hit      # every left half (an earlier contact may lie there), right halves of clear midpoints
+            ta, tb = np.concatenate([ta, tm[keep]]), np.concatenate([tm, tb[keep]])
+            Da, Db = np.concatenate([Da, Dm[keep]]), np.concatenate([Dm, Db[keep]])
         t_all, s_all, D_all = np.concatenate(all_t), np.concatenate(all_s), np.concatenate(all_D)
         if math.isfinite(first):
             n = int(np.argmin(np.abs(t_all - first)))

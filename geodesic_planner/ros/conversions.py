@@ -370,3 +370,12 @@ def vector_to_joint_state(joint_names: Sequence[str], q: np.ndarray,
     msg.name = list(joint_names)
     msg.position = _darray(np.asarray(q, dtype=float).reshape(-1))
     return msg
+
+
+def joint_state_problem(message: str) -> str:
+    """Category of a rejected joint state, from its error message (warnings are rate-limited per
+    category)."""
+    for key in ('duplicate', 'missing', 'none of', 'non-finite'):
+        if key in message:
+            return key
+    return 'length'

@@ -31,6 +31,7 @@ DEFAULT_OUTPUT_TOPIC = '~/joint_trajectory'
 
 STRING, DOUBLE, DOUBLES, STRINGS = 'string', 'double', 'double array', 'string array'
 INTEGER = 'integer'
+BOOL = 'bool'
 #: Default largest number of points of one processed trajectory (1000 s at 0.01 s).
 DEFAULT_MAX_OUTPUT_POINTS = 100_000
 
@@ -145,6 +146,13 @@ def one_of(choices: Sequence[str]) -> Check:
     return check
 
 
+def boolean(value: object) -> str | None:
+    """True or false."""
+    if not isinstance(value, bool):
+        return f'must be true or false, got {value!r}'
+    return None
+
+
 def non_empty(value: object) -> str | None:
     """A non-empty string."""
     if not isinstance(value, str) or not value:
@@ -241,6 +249,30 @@ _SPECS = (
               'joint, rad (m for prismatic joints); a plan beyond it is refused with '
               'START_STATE_MISMATCH (0: no check; no check either before a joint state arrives).',
               'finite, >= 0', non_negative),
+    # planner: collisions
+    ParamSpec('collision_check', BOOL, True,
+              "Check every plan against the robot's own links and the scene (start, goal and the "
+              'whole motion between its points); a collision is refused with '
+              'START_STATE_IN_COLLISION, GOAL_IN_COLLISION or INVALID_MOTION_PLAN.', 'true or false',
+              boolean),
+    ParamSpec('collision_padding', DOUBLE, 0.01,
+              'Clearance every checked pair of bodies keeps, m.', 'in [0, 1]', in_range(0.0, 1.0)),
+    ParamSpec('link_radius', DOUBLE, 0.05,
+              'Radius of the capsules along the links of a model without <collision> geometry '
+              '(the presets), m.', 'in [0.0001, 1]', in_range(1e-4, 1.0)),
+    ParamSpec('exact_meshes', BOOL, False,
+              "Check meshes' triangles instead of their convex hulls (about 100x slower; hulls are "
+              'conservative).', 'true or false', boolean),
+    ParamSpec('srdf', STRING, '',
+              "Path to an SRDF (a MoveIt configuration's); its <disable_collisions> pairs are not "
+              'checked. Empty: none.'),
+    ParamSpec('package_dirs', STRINGS, [],
+              'Directories holding the packages that package:// mesh URIs name (DIR/PKG/...); the '
+              "ament index (AMENT_PREFIX_PATH's share directories) is searched after them.", '',
+              string_array),
+    ParamSpec('scene', STRING, '',
+              'Path to a scene YAML (objects with id, type and dimensions or mesh, pose; README); '
+              'the scene services change it at run time. Empty: no objects.'),
     # both nodes
     ParamSpec('velocity_scaling', DOUBLE, 1.0,
               'Time scaling factor f: durations / f, velocities * f, accelerations * f^2.',
@@ -285,7 +317,9 @@ PLANNER_PARAMETERS = ('robot', 'robot_description', 'base_link', 'tip_link', 'jo
                       'metric', 'position_weight', 'orientation_weight', 'max_velocity',
                       'max_acceleration', 'max_jerk', 'joint_limits', 'max_tool_speed',
                       'max_tool_angular_speed', 'allowed_start_tolerance', 'velocity_scaling',
-                      'sample_period', 'frame_id', 'plan_timeout', 'max_queued_requests')
+                      'sample_period', 'frame_id', 'plan_timeout', 'max_queued_requests',
+                      'collision_check', 'collision_padding', 'link_radius', 'exact_meshes', 'srdf',
+                      'package_dirs', 'scene')
 PROCESSOR_PARAMETERS = ('input_topic', 'output_topic', 'sample_period', 'velocity_scaling',
                         'max_output_points', 'bag_path', 'storage', 'record_topics')
 

@@ -12,12 +12,9 @@ Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default)
   Plan-only unless ``execute`` is true. With a joint state known, an explicit start is solved
   seeded from it and refused (START_STATE_MISMATCH) beyond ``allowed_start_tolerance``.
 * service ``~/plan`` (nav_msgs/srv/GetPlan, compatibility; every success is published, no
-  start-state check): ``start``/``goal`` PoseStamped in the base frame
-  (empty frame_id = base frame; any other frame is rejected). A ``start`` with an empty frame_id
-  and an all-zero quaternion means "from the current joint state" (latest valid ``/joint_states``).
-  ``tolerance`` (m) is the allowed distance between a requested pose and the nearest reachable one
-  (arms with fewer than 6 joints); 0 means the library default. The response ``plan`` holds the
-  tool poses at the trajectory's sample times (frame_id = base frame), or no poses on failure.
+  start-state check): start/goal in the base frame; a start with an empty frame_id and an all-zero
+  quaternion means the current joint state; ``tolerance`` (m, 0: the default) is the allowed
+  distance to the nearest reachable pose. ``plan``: the tool poses at the sample times.
 * topic ``~/joint_trajectory`` (trajectory_msgs/JointTrajectory), reliable, volatile, depth 10:
   one message per successful plan, published as soon as it is validated (before the tool path
   is built and before the service answers), after at most 1 s for subscriptions that the graph
@@ -25,15 +22,16 @@ Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default)
   controller that connects later must not execute an old plan (transient_local would replay it).
 * topic ``~/path_markers`` (visualization_msgs/MarkerArray), reliable, transient_local, depth 1:
   the tool path line strip and start/goal axes of the latest plan (RViz started later sees it).
+* collisions: every plan is checked against the robot's own links and the scene (parameters
+  ``collision_check``, ``collision_padding``, ``srdf``, ``package_dirs``, ``scene``); the reply
+  gives ``min_clearance`` and ``ik_branch``; services and markers of the scene:
+  :mod:`~geodesic_planner.ros.scene_services`.
 * subscription ``/robot_description`` (std_msgs/String, reliable, transient local): the URDF
   used while the ``robot`` parameter is empty (until it arrives, plans fail with PLANNING_FAILED
   saying so).
 * subscription ``/joint_states`` (sensor_msgs/JointState, any joint order, extra joints ignored),
-  best effort, depth 10 (only the latest state matters; matches reliable and best-effort
-  publishers). A message must contain every robot joint exactly once with finite positions;
-  malformed messages are ignored with a warning naming the cause (rate-limited per kind of
-  problem) and never replace the last valid state. A valid state outside the joint limits is
-  kept (it is the robot's state) and plans from it fail with the joints named.
+  best effort, depth 10: every robot joint exactly once with a finite position, or the message is
+  ignored with a rate-limited warning naming the cause (the last valid state is kept).
 
 Parameters (:data:`geodesic_planner.ros.params.PLANNER_PARAMETERS`, from the schema shared with
 the processor node; ``ros2 param describe`` shows its descriptions) are checked one by one
@@ -52,17 +50,11 @@ Executor model, on rclpy's public API: a MultiThreadedExecutor spun by the main 
 ``max_queued_requests + 3`` threads, serves both plan services in a ReentrantCallbackGroup and
 the parameter services (the node's default group: a parameter change never waits behind a plan).
 
-Queue and overload (:class:`~geodesic_planner.ros.admission.PlanQueue`): a request takes a ticket
-when it arrives; at most ``max_queued_requests`` (default 32) may hold one, waiting or planning.
-Ticket holders plan one at a time, in arrival order; each successful executed plan is published
-exactly once, by the request that computed it, before its response is sent. A request that
-finds the queue full is answered at once with PLANNING_FAILED ("planner overloaded ..."), counted
-on /diagnostics (``requests refused queue full``) and in a warning at most every 2 s with the
-count; a request that waits longer than ``plan_timeout`` for its turn is answered TIMED_OUT. The
-services' QoS is reliable KEEP_ALL, so DDS itself never overwrites a request or a reply in a
-burst; with a thread always free, the node drains requests as fast as it can refuse them. A
-client that sends many requests at once should also use KEEP_ALL (its own writer's KEEP_LAST
-history would overwrite requests before they are sent). Every request the node takes is answered.
+Queue and overload (:class:`~geodesic_planner.ros.admission.PlanQueue`): at most
+``max_queued_requests`` requests wait or plan, one plan at a time in arrival order; one more is
+answered at once (PLANNING_FAILED, "planner overloaded", counted on /diagnostics); one that waits
+longer than ``plan_timeout`` is answered TIMED_OUT. Services are reliable KEEP_ALL (clients should
+be too), so every request the node takes is answered (``docs/reliability.md``).
 ``/joint_states`` is taken
 by a hidden node (``_geodesic_planner_joint_states``) spun by an ``rclpy.experimental.EventsExecutor``
 in a thread of its own, so a state message never waits behind a plan either. The latest state is
@@ -70,22 +62,13 @@ an immutable tuple swapped atomically; the configuration (robot, planner, limits
 immutable :class:`~geodesic_planner.ros.planning.PlannerConfig` that a request reads once at its
 start; a parameter change builds a new one (or rejects it with a reason) under a lock.
 
-Why this split, measured with ``benchmarks/node_latency.py`` (ur5e, /joint_states at 250 Hz, 2
-shared cores; ``docs/benchmarks.md``, "Node on stock rclpy"): with /joint_states on the
-MultiThreadedExecutor too, it rebuilds its wait set in Python for every state message: 5.5
-plans/s with 4 clients, 178 ms node CPU per plan. Without them it serves 69 plans/s at p50
-11.8 ms (targets: p50 <= 15 ms, >= 50 plans/s); the EventsExecutor takes the states for a small
-fraction of a core.
+Why this split: ``docs/benchmarks.md``, "Node on stock rclpy" (state messages on the
+MultiThreadedExecutor cost 178 ms of node CPU per plan).
 
-Bounded time (:class:`~geodesic_planner.ros.admission.PlanWorker`): each plan runs in a worker
-thread and the service callback waits at most ``plan_timeout`` s for it. A plan still computing
-then is abandoned: the request is answered TIMED_OUT at once, its computation is cancelled
-(:mod:`geodesic_planner.core.cancel`: it stops at its next checkpoint, within tens of ms), and
-"publish" and "abandon" exclude each other, so its trajectory is never published. (If the
-trajectory was already out, the request waits for its tool path, which needs no solver, and
-succeeds.) The next plan waits for the abandoned one to stop (at most ``CANCEL_WAIT`` s), then
-gets its own whole ``plan_timeout``; /diagnostics counts ``plans abandoned`` and gives the
-time they took to stop.
+Bounded time (:class:`~geodesic_planner.ros.admission.PlanWorker`): a plan still computing after
+``plan_timeout`` is answered TIMED_OUT at once and cancelled (:mod:`geodesic_planner.core.cancel`);
+it is never published; the next plan waits for it to stop (at most ``CANCEL_WAIT`` s), then gets
+its own whole ``plan_timeout``.
 ``kill -USR1 <pid>`` dumps every thread's stack to stderr (faulthandler).
 """
 from __future__ import annotations
@@ -94,7 +77,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -117,6 +100,7 @@ from std_msgs.msg import Header, String
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
+from ..core.collision import CollisionModel
 from ..core.errors import GeodesicPlannerError, RequestError, quoted
 from ..io.requests import PlanRequest
 from . import conversions as cv
@@ -125,6 +109,7 @@ from .admission import PlanQueue, PlanWorker, WorkerBusyError
 from .diagnostics import NodeStatus
 from .matching import matched_logger, wait_for_matched_subscriptions
 from .params import PLANNER_PARAMETERS
+from .scene_services import SceneServices
 from .planning import (CODE_NAMES, ConfigError, PlannerConfig, PlanResult, PlanTimeoutError,
                        build_config, compute_plan, error_code, get_plan_request,
                        plan_trajectory_request)
@@ -150,14 +135,6 @@ class Outcome:
         """The outcome of a library error: its code, its message and, for a line that cannot be
         followed, the followable fraction (``PathFollowError.fraction``)."""
         return cls(error_code(err), str(err), fraction=float(getattr(err, 'fraction', -1.0)))
-
-
-def _joint_state_problem(message: str) -> str:
-    """Category of a rejected joint state (warnings are rate-limited per category)."""
-    for key in ('duplicate', 'missing', 'none of', 'non-finite'):
-        if key in message:
-            return key
-    return 'length'
 
 
 class GeodesicPlannerNode(Node):
@@ -235,6 +212,11 @@ class GeodesicPlannerNode(Node):
             QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.scene = SceneServices(
+            self, self._update_collision, lambda: self._config.collision if self._config else None,
+            lambda: list(self.get_parameter('package_dirs').value or []),
+            lambda: self._config.frame_id if self._config else 'base_link')
+        self.scene.publish_markers()
         services = ', '.join(self.resolve_service_name(n) for n in ('~/plan_trajectory', '~/plan'))
         c = self._config
         if c is None:
@@ -274,6 +256,17 @@ class GeodesicPlannerNode(Node):
             for note in config.notes:
                 self.get_logger().warning(note)
         return config
+
+    def _update_collision(self, change: Callable[[CollisionModel], CollisionModel]) -> CollisionModel:
+        """Apply a scene change to the configuration's collision model (in one step)."""
+        with self._config_lock:
+            config = self._config
+            if config is None or config.collision is None:
+                raise ConfigError('no scene: ' + ('no robot model yet' if config is None else
+                                                  'the collision_check parameter is false'))
+            model = change(config.collision)
+            self._config = replace(config, collision=model)
+            return model
 
     def _on_robot_description(self, msg: String) -> None:
         text = msg.data
@@ -324,6 +317,7 @@ class GeodesicPlannerNode(Node):
         names = ', '.join(f'{p.name}={quoted(p.value) if isinstance(p.value, str) else p.value!r}'
                           for p in ours if p.name != 'robot_description')
         self.get_logger().info(f'parameters updated: {names or "robot_description"}')
+        self.scene.publish_markers()
         return SetParametersResult(successful=True)
 
     # ------------------------------------------------------------------ joint states
@@ -372,7 +366,7 @@ class GeodesicPlannerNode(Node):
         try:
             q = cv.joint_state_to_vector(msg, names)
         except RequestError as err:
-            self._warn_rate_limited(_joint_state_problem(str(err)),
+            self._warn_rate_limited(cv.joint_state_problem(str(err)),
                                     f'ignoring /joint_states message: {err}')
             return
         except Exception as err:  # noqa: BLE001 - boundary
@@ -446,6 +440,8 @@ class GeodesicPlannerNode(Node):
             response.solver_method = result.solver_method
             response.path_error = result.path_error
             response.blend_deviation = list(result.blend_deviation)
+            response.min_clearance = result.min_clearance
+            response.ik_branch = result.ik_branch
         return response
 
     def _serve(self, parse: Callable[[PlannerConfig], tuple[PlanRequest, float | None, float | None]],
@@ -493,7 +489,8 @@ class GeodesicPlannerNode(Node):
             f'plan: {result.points} points, {result.duration:.2f} s, '
             f'{"published" if outcome.published else "not published (execute: false)"}, solver '
             f'{result.solver_method} ({result.solver_iterations} it, {result.mesh_size} nodes), '
-            f'{result.solver_ms:.1f} ms, path error {result.path_error:.2g} m{blends} (request '
+            f'{result.solver_ms:.1f} ms, path error {result.path_error:.2g} m{blends}, clearance '
+            f'{result.min_clearance:.3g} m (request '
             f'{total_ms:.1f} ms: ' + ', '.join(f'{k} {v:.1f}' for k, v in result.stage_ms.items()) + ')')
         return outcome
 

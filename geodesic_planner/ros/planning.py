@@ -38,9 +38,13 @@ from .. import GeodesicPlanner, load_robot
 from ..core.blend import BlendedPath
 from ..core.cancel import checkpoint
 from ..core.errors import (BVPError, FrameError, GeodesicPlannerError, IKError, KinematicsError,
-                           LimitError, PathFollowError, RequestError, SingularMetricError,
-                           StartStateError, TrajectoryError)
+                           GoalInCollisionError, LimitError, PathFollowError, PathInCollisionError,
+                           RequestError, SingularMetricError, StartInCollisionError, StartStateError,
+                           TrajectoryError)
+from ..core.branches import first_clear, start_branches
 from ..core.kinematics import Chain
+from ..core.path import JointPath
+from ..io.collision_setup import collision_for_parameters
 from ..io.joint_limits import apply_joint_limits, load_joint_limits
 from ..io.requests import PlanRequest
 from ..timing.validate import trajectory_problems
@@ -73,6 +77,9 @@ class PlanTimeoutError(GeodesicPlannerError):
 #: Library error class -> PlanErrorCode value; the first class that matches wins (subclasses first).
 ERROR_CODES: tuple[tuple[type[BaseException], int], ...] = (
     (FrameError, PlanErrorCode.FRAME_TRANSFORM_FAILURE),
+    (StartInCollisionError, PlanErrorCode.START_STATE_IN_COLLISION),
+    (GoalInCollisionError, PlanErrorCode.GOAL_IN_COLLISION),
+    (PathInCollisionError, PlanErrorCode.INVALID_MOTION_PLAN),
     (StartStateError, PlanErrorCode.START_STATE_MISMATCH),
     (TrajectoryError, PlanErrorCode.PLANNING_FAILED),      # the generated trajectory, not the request
     (ConfigError, PlanErrorCode.PLANNING_FAILED),          # no usable model yet
@@ -145,6 +152,10 @@ class PlannerConfig:
     default_velocity_factor: float = 1.0
     default_acceleration_factor: float = 1.0
     notes: tuple[str, ...] = ()
+    #: the collision model and its scene (None: collision_check off), and the parameters it was
+    #: built from (reused while they are unchanged, so run-time scene changes are kept)
+    collision: Any = None
+    collision_key: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -158,7 +169,8 @@ class PlanResult:
     duration: float
     solver_iterations: int
     solver_ms: float
-    #: ms per stage: 'plan' (library), 'timing' (timed + sample), 'trajectory' (message and
+    #: ms per stage: 'plan' (library), 'timing' (timed + sample), 'collision' (the checks,
+    #: other branches' plans included), 'trajectory' (message and
     #: its validation), 'publish' (on_trajectory), 'tool path' (fk, Path and markers)
     stage_ms: dict[str, float]
     #: SolverReport.method ('pullback', 'redundant' or 'collocation') and mesh size
@@ -166,6 +178,10 @@ class PlanResult:
     mesh_size: int = 0
     #: largest distance of the tool from the straight segment(s), m (outside any blend zone)
     path_error: float = math.nan
+    #: smallest distance between checked bodies over the motion, m (nan: not checked)
+    min_clearance: float = math.nan
+    #: the start's IK branch: 'default', 'k of n', or '' (start given as joints or the current state)
+    ik_branch: str = ''
     #: per via pose when the request asked for blends (blend_radius > 0), else empty: the largest
     #: distance (m) of the tool from the stopping path inside its blend zone (0: passed with a stop)
     blend_deviation: tuple[float, ...] = ()
@@ -314,6 +330,11 @@ def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) 
                                       orientation_weight=ow)
         except GeodesicPlannerError as err:
             raise ConfigError(f'cannot build the planner: {err}') from err
+    try:
+        collision, collision_key = collision_for_parameters(
+            values, robot, previous.collision if previous else None, previous.collision_key if previous else ())
+    except GeodesicPlannerError as err:
+        raise ConfigError(f'collision model: {err}') from err
     return PlannerConfig(
         robot=robot, planner=planner, robot_key=robot_key + (names,), planner_key=planner_key,
         joint_names=tuple(robot.joint_names), frame_id=frame_id or robot.base_link,
@@ -323,7 +344,7 @@ def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) 
         max_jerk=max_jerk,
         allowed_start_tolerance=float(values['allowed_start_tolerance']),
         default_velocity_factor=default_fv, default_acceleration_factor=default_fa,
-        notes=tuple(notes))
+        notes=tuple(notes), collision=collision, collision_key=collision_key)
 
 
 # --------------------------------------------------------------------------- requests
@@ -469,9 +490,6 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
     if request.start is None and request.start_joints is None:
         request = replace(request, start_joints=_start_from_state(config, current_q))
     t0 = time.perf_counter()
-    path = request.plan(config.planner, start_seed=current_q)
-    check_start_state(config, path.q_start, current_q)
-    t1 = time.perf_counter()
     fv = config.velocity_scaling * (velocity_factor or config.default_velocity_factor)
     fa = config.velocity_scaling ** 2 * (acceleration_factor or config.default_acceleration_factor)
     limits: dict[str, Any] = {}  # the optional limits of path.timed
@@ -481,8 +499,37 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
         limits['max_tool_angular_speed'] = config.max_tool_angular_speed * fv
     if config.max_jerk is not None:     # time scaling by f multiplies jerk by f^3
         limits['max_jerk'] = config.max_jerk * config.velocity_scaling ** 3
-    trajectory = path.timed(max_velocity=config.max_velocity * fv,
-                            max_acceleration=config.max_acceleration * fa, **limits)
+    spent = {'plan': 0.0, 'timing': 0.0}
+
+    def attempt(q_start: np.ndarray | None) -> tuple[Any, Any]:
+        ta = time.perf_counter()
+        req = request if q_start is None else replace(request, start=None, start_joints=q_start)
+        path = req.plan(config.planner, start_seed=current_q)
+        check_start_state(config, path.q_start, current_q)
+        tb = time.perf_counter()
+        trajectory = path.timed(max_velocity=config.max_velocity * fv,
+                                max_acceleration=config.max_acceleration * fa, **limits)
+        spent['plan'] += tb - ta
+        spent['timing'] += time.perf_counter() - tb
+        return path, trajectory
+
+    pose_start = request.start is not None and request.start_joints is None
+    clearance = math.nan
+    if config.collision is None:
+        path, trajectory = attempt(None)
+        branch = 'default' if pose_start else ''
+    else:
+        T_start = request.start
+
+        def branches(first: JointPath) -> list[np.ndarray]:
+            assert T_start is not None
+            return start_branches(config.planner, T_start, first.q_start, request.tolerance)
+        path, trajectory, found, branch = first_clear(attempt, config.collision,
+                                                      branches if pose_start else None)
+        branch = branch if pose_start else ''
+        clearance = found.min_clearance
+    t1 = time.perf_counter()
+    collision_ms = (t1 - t0 - spent['plan'] - spent['timing']) * 1e3
     points = int(trajectory.duration / config.sample_period) + 2
     if points > MAX_POINTS:
         raise PlanningFailedError(
@@ -508,12 +555,13 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
     deviation = blend_deviation(request, path)
     t5 = time.perf_counter()
     solver = path.solver
-    stages = {'plan': (t1 - t0) * 1e3, 'timing': (t2 - t1) * 1e3,
+    stages = {'plan': spent['plan'] * 1e3, 'timing': (spent['timing'] + t2 - t1) * 1e3,
+              'collision': collision_ms,
               'trajectory': (t3 - t2) * 1e3, 'publish': (t4 - t3) * 1e3,
               'tool path': (t5 - t4) * 1e3}
     return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
                       int(solver.iterations), float(solver.time_ms), stages,
-                      solver.method, int(solver.mesh_size), path_error, deviation)
+                      solver.method, int(solver.mesh_size), path_error, clearance, branch, deviation)
 
 
 def _fk(robot: Chain, q: np.ndarray) -> np.ndarray:
