@@ -18,7 +18,7 @@ setup(
         ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml'))),
     ],
     python_requires='>=3.10',
-    install_requires=['numpy>=1.24', 'scipy>=1.10', 'pyyaml>=6'],
+    install_requires=['numpy>=1.24', 'scipy>=1.10', 'pyyaml>=6', 'pin>=3.0'],
     extras_require={
         'plot': ['matplotlib>=3.6'],
         'bag': ['rosbags>=0.11'],

@@ -102,6 +102,37 @@ class LineUnreachableError(PathFollowError, IKError):
     """The line leaves what the start's branch can reach (names the place)."""
 
 
+class CollisionError(GeodesicPlannerError):
+    """Two bodies (robot links, scene or attached objects) come closer than the collision padding.
+
+    Attributes:
+        pair: the two bodies' names.
+        fraction: where, as the path parameter s in [0, 1] (0 at the start, 1 at the goal).
+        time: where, s from the trajectory's start.
+        clearance: their distance there, m (0 or negative: in contact).
+    """
+
+    def __init__(self, message: str, *, pair: tuple[str, str], fraction: float, time: float,
+                 clearance: float) -> None:
+        super().__init__(message)
+        self.pair = pair
+        self.fraction = fraction
+        self.time = time
+        self.clearance = clearance
+
+
+class StartInCollisionError(CollisionError):
+    """The start state is in collision (MoveIt's START_STATE_IN_COLLISION)."""
+
+
+class GoalInCollisionError(CollisionError):
+    """The goal state is in collision (MoveIt's GOAL_IN_COLLISION)."""
+
+
+class PathInCollisionError(CollisionError):
+    """A collision on the way between start and goal (MoveIt's INVALID_MOTION_PLAN)."""
+
+
 class BagError(GeodesicPlannerError):
     """A bag cannot be read or written."""
 
@@ -110,13 +141,17 @@ __all__ = [
     'QUOTE_LIMIT',
     'BVPError',
     'BagError',
+    'CollisionError',
     'FrameError',
     'GeodesicPlannerError',
+    'GoalInCollisionError',
     'IKError',
     'KinematicsError',
     'LimitError',
+    'PathInCollisionError',
     'RequestError',
     'SingularMetricError',
+    'StartInCollisionError',
     'StartStateError',
     'TrajectoryError',
     'quoted',

@@ -134,7 +134,7 @@ class Chain:
             if np.allclose(u, [0.0, 0.0, 1.0]):
                 continue
             C = np.eye(4)
-            C[:3, :3] = _rotation_z_to(u)
+            C[:3, :3] = rotation_z_to(u)
             fixed_z[i] = fixed_z[i] @ C
             fixed_z[i + 1] = C.T @ fixed_z[i + 1]
         self._fixed = np.array(fixed_z)
@@ -251,6 +251,39 @@ class Chain:
             T = T @ MF[:, i]
         return Tj, T
 
+    def segment_frames(self, q: np.ndarray) -> np.ndarray:
+        """Frames of the rigid segments: the base and the body moved by each joint.
+
+        Args:
+            q: joint positions, shape (N, dof).
+        Returns:
+            (N, dof + 1, 4, 4) base->segment transforms: index 0 is the base (identity), index k
+            the frame moved by joint k (its joint frame after the joint's motion; every link between
+            joint k and joint k + 1 is rigidly attached to it).
+        """
+        Tj, _ = self.frames(q)
+        N = q.shape[0]
+        S = np.empty((N, self.dof + 1, 4, 4))
+        S[:, 0] = np.eye(4)
+        S[:, 1:] = Tj
+        c = np.cos(q)[..., None]
+        s_ = np.sin(q)[..., None]
+        col0, col1 = Tj[..., :, 0], Tj[..., :, 1]
+        rev = ~self._prismatic[:, None]
+        S[:, 1:, :, 0] = np.where(rev, c * col0 + s_ * col1, col0)
+        S[:, 1:, :, 1] = np.where(rev, c * col1 - s_ * col0, col1)
+        S[:, 1:, :, 3] += np.where(rev, 0.0, q[..., None] * Tj[..., :, 2])
+        return S
+
+    def segment_ends(self) -> np.ndarray:
+        """(dof + 1, 3): where each segment ends in its own frame (m): the next joint's origin, the
+        tool's for the last segment (a segment's length is this point's norm)."""
+        return self._fixed[:, :3, 3].copy()
+
+    def tool_offset(self) -> np.ndarray:
+        """4x4: the last segment's frame -> the tool frame (fixed)."""
+        return self._fixed[-1].copy()
+
     def fk(self, q: np.ndarray) -> np.ndarray:
         """Forward kinematics: joint positions (..., dof) -> base->tool transforms (..., 4, 4)."""
         q = np.asarray(q, dtype=float)
@@ -341,7 +374,7 @@ def embed12(M: np.ndarray) -> np.ndarray:
     return np.concatenate([M[..., :3, 3], M[..., :3, 0], M[..., :3, 1], M[..., :3, 2]], axis=-1)
 
 
-def _rotation_z_to(u: np.ndarray) -> np.ndarray:
+def rotation_z_to(u: np.ndarray) -> np.ndarray:
     """A rotation matrix C with C @ e_z = u (u a unit vector)."""
     z = np.array([0.0, 0.0, 1.0])
     c = float(np.dot(z, u))

@@ -20,7 +20,7 @@ KEYS = {
     'matplotlib': 'python3-matplotlib', 'rosbags': 'python3-rosbags-pip',
     'pytest': 'python3-pytest', 'hypothesis': 'python3-hypothesis',
     'ament_flake8': 'ament_flake8', 'ament_pep257': 'ament_pep257',
-    'launch': 'launch', 'launch_ros': 'launch_ros', 'pinocchio': 'pinocchio',
+    'launch': 'launch', 'launch_ros': 'launch_ros', 'pinocchio': 'pinocchio', 'coal': 'coal',
     **{pkg: pkg for pkg in ('rclpy', 'builtin_interfaces', 'rcl_interfaces', 'diagnostic_msgs',
                             'geometry_msgs', 'nav_msgs', 'sensor_msgs', 'std_msgs', 'trajectory_msgs',
                             'visualization_msgs', 'geodesic_planner_interfaces')},

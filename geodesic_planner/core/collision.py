@@ -1,0 +1,397 @@
+"""Collision checking: the robot's own links and the cell, along the whole motion.
+
+A :class:`CollisionModel` holds the robot's bodies (:mod:`.collision_bodies`), the scene objects,
+the pairs it checks and a padding (m). A pair is in collision where its distance is at most the
+padding.
+
+Pairs skipped, each with its reason in :attr:`CollisionModel.skipped`:
+
+- bodies on one rigid segment (they never move against each other: a link's several
+  ``<collision>`` elements, links joined by fixed joints, an attached object and the tool link);
+- adjacent links, one joint apart (they touch at the joint by construction, as MoveIt assumes);
+- pairs listed in an SRDF's ``<disable_collisions>`` (MoveIt configuration packages);
+- robot pairs within the padding at the robot's home pose (MoveIt Setup Assistant's "Default":
+  with them every plan near home would be refused, and they are a modelling artefact, e.g. hulls
+  that overlap at a joint);
+- scene objects against bodies fixed to the base (no motion changes their distance: a base
+  bolted to a table is not a collision a plan could avoid).
+
+Along a motion (:meth:`CollisionModel.check_motion`) the check is conservative. A point of a body
+on segment k moves at most ``sum_j |dq_j/dt| * reach_jk`` (m/s), where ``reach_jk`` bounds the
+distance of the body from joint j's axis by the segment lengths (triangle inequality, independent
+of the configuration). A pair's distance therefore changes at most at the sum of its two bodies'
+speeds ``R``; an interval [a, b] is clear when ``d(a) + d(b) - R (b - a) > 2 padding``, and an
+interval that is not is bisected. So a thin plate between two checks is caught; the motion is
+refused where a distance comes within :data:`RESOLUTION` of the padding.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import coal
+import numpy as np
+
+from .cancel import checkpoint
+from .collision_bodies import (
+    Body,
+    SceneObject,
+    Shape,
+    capsule_bodies,
+    object_body,
+    pair_key,
+    srdf_disabled,
+    urdf_bodies,
+)
+from .errors import (
+    GoalInCollisionError,
+    PathInCollisionError,
+    RequestError,
+    StartInCollisionError,
+    quoted,
+)
+from .kinematics import Chain
+
+__all__ = ['DEFAULT_LINK_RADIUS', 'DEFAULT_PADDING', 'RESOLUTION', 'CollisionModel', 'MotionClearance',
+           'SceneObject', 'Shape']
+
+#: Default ``collision_padding``: the clearance every checked pair keeps, m.
+DEFAULT_PADDING = 0.01
+#: Radius of the capsules along the links of a model without ``<collision>`` geometry, m.
+DEFAULT_LINK_RADIUS = 0.05
+#: A motion is refused where a distance comes within this of the padding, m.
+RESOLUTION = 1e-3
+#: Largest number of configurations one motion check evaluates before it refuses.
+MAX_CHECKS = 20_000
+#: Largest number of scene objects.
+MAX_OBJECTS = 1000
+#: Bound used for a prismatic joint's travel when its limits are infinite, m.
+UNBOUNDED_TRAVEL = 10.0
+#: Margin on the joint speed bound (a trajectory may pass its limits by round-off).
+SPEED_MARGIN = 1.05
+
+
+@dataclass(frozen=True)
+class MotionClearance:
+    """What a motion check found.
+
+    Attributes:
+        min_clearance: the smallest distance between checked bodies over the motion, m (inf when
+            nothing is checked).
+        pair: the two bodies that have it.
+        time: where, s; fraction: where, as the path parameter s.
+        checks: configurations evaluated.
+    """
+
+    min_clearance: float
+    pair: tuple[str, str]
+    time: float
+    fraction: float
+    checks: int
+
+
+class CollisionModel:
+    """The robot's bodies, the scene, the checked pairs and the padding (immutable).
+
+    Build it with :meth:`for_robot`; :meth:`with_objects` gives the same robot in another scene.
+    """
+
+    def __init__(self, robot: Chain, bodies: Sequence[Body], disabled: dict[tuple[str, str], str],
+                 padding: float, objects: Sequence[SceneObject] = (), *, exact_meshes: bool = False) -> None:
+        if not (math.isfinite(padding) and padding >= 0.0):
+            raise RequestError(f'collision_padding must be finite and >= 0 m, got {padding!r}')
+        if len(objects) > MAX_OBJECTS:
+            raise RequestError(f'scene: {len(objects)} objects, at most {MAX_OBJECTS}')
+        ids = [o.id for o in objects]
+        robot_names = {b.name for b in bodies}
+        for i, name in enumerate(ids):
+            if name in ids[:i]:
+                raise RequestError(f'scene: two objects named {quoted(name)}')
+            if name in robot_names:
+                raise RequestError(f'scene: object {quoted(name)} has the name of a robot link')
+        self.robot = robot
+        self.padding = float(padding)
+        self.exact_meshes = exact_meshes
+        self.objects: tuple[SceneObject, ...] = tuple(objects)
+        self._robot_bodies = tuple(bodies)
+        self._disabled = dict(disabled)
+        self._bodies = self._robot_bodies + tuple(object_body(o, robot, exact_meshes=exact_meshes) for o in objects)
+        self.body_names: tuple[str, ...] = tuple(dict.fromkeys(b.name for b in self._robot_bodies))
+        self.skipped: dict[tuple[str, str], str] = {}
+        ia, ib = [], []
+        for i, a in enumerate(self._bodies):
+            for j in range(i + 1, len(self._bodies)):
+                why = self._skip(a, self._bodies[j])
+                key = pair_key(a.name, self._bodies[j].name)
+                if why:
+                    self.skipped.setdefault(key, why)
+                else:
+                    ia.append(i)
+                    ib.append(j)
+        self._ia, self._ib = np.array(ia, dtype=int), np.array(ib, dtype=int)
+        names = [pair_key(self._bodies[i].name, self._bodies[j].name) for i, j in zip(ia, ib)]
+        for key in names:
+            self.skipped.pop(key, None)     # some of a link's bodies checked: the pair is checked
+        self.pairs: tuple[tuple[str, str], ...] = tuple(dict.fromkeys(names))
+        self._pair_names = names
+        self._segment = np.array([b.segment for b in self._bodies], dtype=int)
+        self._offset = np.array([b.offset for b in self._bodies]).reshape(-1, 4, 4)
+        self._center = np.array([b.center for b in self._bodies]).reshape(-1, 3)
+        self._radius = np.array([b.radius for b in self._bodies])
+        self._reach = self._reaches()
+        self._distance_fns: dict[int, Any] = {}
+        self._request = coal.DistanceRequest()
+        self._result = coal.DistanceResult()
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def for_robot(cls, robot: Chain, urdf: str | None = None, *, package_dirs: Sequence[str] = (),
+                  srdf: str | None = None, padding: float = DEFAULT_PADDING, exact_meshes: bool = False,
+                  link_radius: float = DEFAULT_LINK_RADIUS) -> CollisionModel:
+        """The robot's collision model, with an empty scene.
+
+        Args:
+            robot: the chain.
+            urdf: its URDF text; its ``<collision>`` elements give the bodies. None, or a URDF
+                without them: capsules of ``link_radius`` along the segments.
+            package_dirs: directories that hold the packages ``package://`` names.
+            srdf: SRDF text whose ``<disable_collisions>`` pairs are skipped.
+            padding: the clearance kept, m.
+            exact_meshes: check meshes' triangles instead of their convex hulls (about 100x slower).
+            link_radius: capsule radius, m.
+        Raises:
+            KinematicsError: the URDF's geometry cannot be read; RequestError: bad SRDF or values.
+        """
+        bodies = urdf_bodies(robot, urdf, package_dirs=package_dirs, exact_meshes=exact_meshes) if urdf else []
+        if not bodies:
+            if not (math.isfinite(link_radius) and link_radius > 0.0):
+                raise RequestError(f'link_radius must be finite and > 0 m, got {link_radius!r}')
+            bodies = capsule_bodies(robot, link_radius)
+        disabled = srdf_disabled(srdf) if srdf else {}
+        model = cls(robot, bodies, disabled, padding, exact_meshes=exact_meshes)
+        return model._without_home_contacts()
+
+    def _without_home_contacts(self) -> CollisionModel:
+        """This model with the robot pairs within the padding at the home pose disabled."""
+        if self._ia.size == 0:
+            return self
+        lower, _, _ = self._bounds(self.robot.home[None], exact_below=np.inf)
+        close = {self._pair_names[p] for p in np.flatnonzero(lower[0] <= self.padding)}
+        if not close:
+            return self
+        disabled = dict(self._disabled)
+        for key in close:
+            disabled.setdefault(key, f'within the padding ({self.padding:g} m) at the home pose')
+        return CollisionModel(self.robot, self._robot_bodies, disabled, self.padding, self.objects,
+                              exact_meshes=self.exact_meshes)
+
+    def with_objects(self, objects: Sequence[SceneObject]) -> CollisionModel:
+        """The same robot and pairs rules in the scene ``objects`` (replacing the current scene)."""
+        return CollisionModel(self.robot, self._robot_bodies, self._disabled, self.padding, objects,
+                              exact_meshes=self.exact_meshes)
+
+    def with_padding(self, padding: float) -> CollisionModel:
+        """The same model with another padding (the home-pose pairs are not recomputed)."""
+        return CollisionModel(self.robot, self._robot_bodies, self._disabled, padding, self.objects,
+                              exact_meshes=self.exact_meshes)
+
+    def _skip(self, a: Body, b: Body) -> str:
+        """Why the pair (a, b) is not checked ('' when it is)."""
+        if a.kind != 'link' and b.kind != 'link':
+            return '' if 'attached' in (a.kind, b.kind) and a.segment != b.segment else 'objects on one segment'
+        if a.segment == b.segment:
+            if a.kind == 'link' and b.kind == 'link':
+                return 'one rigid segment'
+            return 'the tool link touches what it carries' if 'attached' in (a.kind, b.kind) else \
+                'fixed to the base: their distance cannot change'
+        if a.kind == 'link' and b.kind == 'link':
+            if abs(a.segment - b.segment) == 1:
+                return 'adjacent links (one joint apart)'
+            return self._disabled.get(pair_key(a.name, b.name), '')
+        return ''
+
+    def _reaches(self) -> np.ndarray:
+        """(bodies, dof): speed of any point of each body per unit joint speed (m/rad, or 1 m/m)."""
+        robot = self.robot
+        n = robot.dof
+        seg_len = np.linalg.norm(robot.segment_ends(), axis=1)       # (dof + 1,)
+        travel = np.where(robot.revolute, 0.0,
+                          np.nan_to_num(np.maximum(np.abs(robot.lower), np.abs(robot.upper)),
+                                        posinf=UNBOUNDED_TRAVEL))
+        reach = np.zeros((len(self._bodies), n))
+        for b, body in enumerate(self._bodies):
+            k = body.segment
+            out = float(np.linalg.norm(body.center)) + body.radius   # from the segment origin
+            for j in range(k, 0, -1):                                # joint j moves segments >= j
+                reach[b, j - 1] = 1.0 if not robot.revolute[j - 1] else out
+                out += seg_len[j - 1] + travel[j - 1]
+        return reach
+
+    # ------------------------------------------------------------------ queries
+    def _poses(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Body frames (N, bodies, 4, 4) and bounding-sphere centres (N, bodies, 3), base frame."""
+        S = self.robot.segment_frames(qs)[:, self._segment]
+        centers = np.einsum('nbij,bj->nbi', S[..., :3, :3], self._center) + S[..., :3, 3]
+        return S @ self._offset, centers
+
+    def _exact(self, P: np.ndarray, n: int, p: int) -> float:
+        """Distance of pair p at configuration n (coal), m."""
+        i, j = int(self._ia[p]), int(self._ib[p])
+        fn = self._distance_fns.get(p)
+        if fn is None:
+            fn = self._distance_fns[p] = coal.ComputeDistance(self._bodies[i].geometry, self._bodies[j].geometry)
+        self._result.clear()
+        Ti = coal.Transform3s(P[n, i, :3, :3], P[n, i, :3, 3])
+        Tj = coal.Transform3s(P[n, j, :3, :3], P[n, j, :3, 3])
+        return float(fn(Ti, Tj, self._request, self._result))
+
+    def _bounds(self, qs: np.ndarray, exact_below: np.ndarray | float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Lower bounds of every pair's distance at each configuration, (N, pairs), m: coal's
+        distance where the bounding spheres' bound is below ``exact_below`` (scalar or (pairs,)),
+        the spheres' bound elsewhere; with the mask of the exact ones and the body frames."""
+        P, centers = self._poses(qs)
+        lower = (np.linalg.norm(centers[:, self._ia] - centers[:, self._ib], axis=-1)
+                 - self._radius[self._ia] - self._radius[self._ib])
+        exact = lower < exact_below
+        for n, p in zip(*np.nonzero(exact)):
+            lower[n, p] = self._exact(P, int(n), int(p))
+        return lower, exact, P
+
+    def distances(self, qs: np.ndarray) -> tuple[np.ndarray, list[tuple[str, str]]]:
+        """The smallest distance over the checked pairs at each configuration, and its pair.
+
+        Args:
+            qs: joint positions, shape (N, dof); rad or m.
+        Returns:
+            (d, pairs): d (N,) in m (0 or negative in contact; inf when no pair is checked) and the
+            pair of names that has it (('', '') when none).
+        """
+        qs = self.robot.check_joints(np.atleast_2d(qs), 'qs')
+        if self._ia.size == 0:
+            return np.full(len(qs), np.inf), [('', '')] * len(qs)
+        lower, exact, P = self._bounds(qs, exact_below=-np.inf)
+        d, pairs = np.empty(len(qs)), []
+        for n in range(len(qs)):
+            while True:             # best first: the smallest bound, made exact, until it is exact
+                p = int(np.argmin(lower[n]))
+                if exact[n, p]:
+                    break
+                lower[n, p] = self._exact(P, n, p)
+                exact[n, p] = True
+            d[n] = lower[n, p]
+            pairs.append(self._pair_names[p])
+        return d, pairs
+
+    def check_state(self, q: np.ndarray, what: str = 'start') -> float:
+        """The clearance of one configuration (m); raises when it is within the padding.
+
+        Raises:
+            StartInCollisionError: ``what == 'start'``; GoalInCollisionError: otherwise.
+        """
+        d, pairs = self.distances(np.asarray(q, dtype=float)[None])
+        if d[0] <= self.padding:
+            self._raise(what, pairs[0], float(d[0]), 0.0 if what == 'start' else 1.0, math.nan)
+        return float(d[0])
+
+    def _raise(self, what: str, pair: tuple[str, str], d: float, fraction: float, t: float) -> None:
+        where = 'touch' if d <= 0.0 else f'are {d:.4f} m apart'
+        bodies = f'{quoted(pair[0])} and {quoted(pair[1])}'
+        pad = f'collision_padding {self.padding:g} m'
+        if what == 'start':
+            raise StartInCollisionError(f'start state in collision: {bodies} {where} ({pad})',
+                                        pair=pair, fraction=fraction, time=t, clearance=d)
+        if what == 'goal':
+            raise GoalInCollisionError(f'goal state in collision: {bodies} {where} ({pad})',
+                                       pair=pair, fraction=fraction, time=t, clearance=d)
+        raise PathInCollisionError(
+            f'collision on the way: {bodies} come within {max(d, 0.0):.4f} m ({pad}) at '
+            f'{100.0 * fraction:.1f} % of the way (t = {t:.3f} s)',
+            pair=pair, fraction=fraction, time=t, clearance=d)
+
+    def check_motion(self, positions: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+                     duration: float, joint_speed: np.ndarray) -> MotionClearance:
+        """Check a whole motion, between its samples too (see the module's doc for the rule).
+
+        Args:
+            positions: times (M,) s -> (joint positions (M, dof), path parameter s (M,)).
+            duration: the motion's duration, s.
+            joint_speed: a bound on |dq/dt| over the motion, (dof,), rad/s or m/s.
+        Returns:
+            the smallest clearance found, with its pair and place.
+        Raises:
+            StartInCollisionError, GoalInCollisionError, PathInCollisionError: a clearance within
+                the padding at t = 0, at the end, or on the way (the first place found).
+        """
+        speed = np.abs(np.asarray(joint_speed, dtype=float)) * SPEED_MARGIN
+        T = float(duration)
+        if self._ia.size == 0:
+            return MotionClearance(math.inf, ('', ''), 0.0, 0.0, 0)
+        rate = self._reach @ speed                            # (bodies,) m/s
+        R = rate[self._ia] + rate[self._ib]                   # (pairs,) m/s
+        pad, tol = self.padding, RESOLUTION
+        times = np.linspace(0.0, T, 9) if T > 0.0 else np.zeros(1)
+        qs, s = positions(times)
+        D, _, _ = self._bounds(np.asarray(qs, dtype=float), exact_below=pad + tol + R * (times[-1] - times[0]) / 8)
+        all_t, all_s, all_D = [times], [np.asarray(s, dtype=float)], [D]
+        self._stop_at_ends(D, times, np.asarray(s, dtype=float))
+        ta, tb, Da, Db = times[:-1], times[1:], D[:-1], D[1:]
+        checks = len(times)
+        first = math.inf
+        while ta.size:
+            checkpoint()
+            unsafe = np.any(Da + Db - R * (tb - ta)[:, None] <= 2.0 * pad, axis=1) & (ta < first)
+            ta, tb, Da, Db = ta[unsafe], tb[unsafe], Da[unsafe], Db[unsafe]
+            if not ta.size:
+                break
+            if checks + ta.size > MAX_CHECKS:
+                first = min(first, float(ta[0]))
+                break
+            tm = 0.5 * (ta + tb)
+            qm, sm = positions(tm)
+            Dm, _, _ = self._bounds(np.asarray(qm, dtype=float), exact_below=pad + tol + R * (tm - ta).max())
+            checks += tm.size
+            all_t.append(tm)
+            all_s.append(np.asarray(sm, dtype=float))
+            all_D.append(Dm)
+            hit = np.any(Dm <= pad + tol, axis=1)
+            if hit.any():
+                first = min(first, float(tm[hit].min()))
+            keep = ~hit
+            ta, tb = np.concatenate([ta[keep], tm[keep]]), np.concatenate([tm[keep], tb[keep]])
+            Da, Db = np.concatenate([Da[keep], Dm[keep]]), np.concatenate([Dm[keep], Db[keep]])
+        t_all, s_all, D_all = np.concatenate(all_t), np.concatenate(all_s), np.concatenate(all_D)
+        if math.isfinite(first):
+            n = int(np.argmin(np.abs(t_all - first)))
+            p = int(np.argmin(D_all[n]))
+            self._raise('path', self._pair_names[p], float(D_all[n, p]), float(s_all[n]), float(t_all[n]))
+        n_min, p_min = (int(i) for i in np.unravel_index(int(np.argmin(D_all)), D_all.shape))
+        return MotionClearance(float(D_all[n_min, p_min]), self._pair_names[p_min], float(t_all[n_min]),
+                               float(s_all[n_min]), checks)
+
+    def _stop_at_ends(self, D: np.ndarray, times: np.ndarray, s: np.ndarray) -> None:
+        """Raise for a start or goal within the padding (exact there: the bound is small)."""
+        for n, what in ((0, 'start'), (len(times) - 1, 'goal')):
+            p = int(np.argmin(D[n]))
+            if D[n, p] <= self.padding:
+                self._raise(what, self._pair_names[p], float(D[n, p]), float(s[n]), float(times[n]))
+
+    # ------------------------------------------------------------------ drawing
+    def body_poses(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """Every body's frame (4x4, base frame) at one configuration, by name (a link with several
+        bodies: its first)."""
+        P = self._poses(self.robot.check_joints(np.asarray(q, dtype=float)[None], 'q'))[0][0]
+        out: dict[str, np.ndarray] = {}
+        for b, body in enumerate(self._bodies):
+            out.setdefault(body.name, P[b])
+        return out
+
+    def shapes(self) -> dict[str, Shape]:
+        """The shapes of the bodies that have one (scene objects, capsule links), by name."""
+        return {b.name: b.shape for b in self._bodies if b.shape is not None}
+
+    def with_scene_bodies(self) -> tuple[Body, ...]:
+        """All bodies, robot first (for plots)."""
+        return self._bodies
