@@ -33,12 +33,12 @@ from urllib.parse import unquote
 import numpy as np
 import yaml
 
-from ..core.collision import SceneObject, Shape
+from ..core.collision import MAX_OBJECTS, SceneObject, Shape
 from ..core.errors import RequestError, quoted
 from ..core.transforms import pose_from_mapping, pose_to_transform
 
-#: Most objects one scene may hold (a scene file or the planner node's scene).
-MAX_SCENE_OBJECTS = 1000
+#: Most objects one scene file may hold: as many as a collision model takes.
+MAX_SCENE_OBJECTS = MAX_OBJECTS
 #: Primitive kinds of shape_msgs/SolidPrimitive -> the names of their dimensions, in order (m).
 PRIMITIVE_DIMENSIONS: dict[str, tuple[str, ...]] = {
     'box': ('x', 'y', 'z'),
