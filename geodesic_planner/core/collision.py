@@ -250,15 +250,20 @@ class CollisionModel:
         centers = np.einsum('nbij,bj->nbi', S[..., :3, :3], self._center) + S[..., :3, 3]
         return S @ self._offset, centers
 
-    def _exact(self, P: np.ndarray, n: int, p: int) -> float:
-        """Distance of pair p at configuration n (coal), m."""
+    def _exact(self, P: np.ndarray, n: int, p: int, cache: dict[tuple[int, int], Any]) -> float:
+        """Distance of pair p at configuration n (coal), m; ``cache`` keeps each body's coal
+        transform per configuration (a body is in several pairs)."""
         i, j = int(self._ia[p]), int(self._ib[p])
         fn = self._distance_fns.get(p)
         if fn is None:
             fn = self._distance_fns[p] = coal.ComputeDistance(self._bodies[i].geometry, self._bodies[j].geometry)
+        Ti = cache.get((n, i))
+        if Ti is None:
+            Ti = cache[n, i] = coal.Transform3s(P[n, i, :3, :3], P[n, i, :3, 3])
+        Tj = cache.get((n, j))
+        if Tj is None:
+            Tj = cache[n, j] = coal.Transform3s(P[n, j, :3, :3], P[n, j, :3, 3])
         self._result.clear()
-        Ti = coal.Transform3s(P[n, i, :3, :3], P[n, i, :3, 3])
-        Tj = coal.Transform3s(P[n, j, :3, :3], P[n, j, :3, 3])
         return float(fn(Ti, Tj, self._request, self._result))
 
     def _bounds(self, qs: np.ndarray, exact_below: np.ndarray | float
@@ -270,8 +275,9 @@ class CollisionModel:
         lower = (np.linalg.norm(centers[:, self._ia] - centers[:, self._ib], axis=-1)
                  - self._radius[self._ia] - self._radius[self._ib])
         exact = lower < exact_below
+        cache: dict[tuple[int, int], Any] = {}
         for n, p in zip(*np.nonzero(exact)):
-            lower[n, p] = self._exact(P, int(n), int(p))
+            lower[n, p] = self._exact(P, int(n), int(p), cache)
         return lower, exact, P
 
     def distances(self, qs: np.ndarray) -> tuple[np.ndarray, list[tuple[str, str]]]:
@@ -287,13 +293,14 @@ class CollisionModel:
         if self._ia.size == 0:
             return np.full(len(qs), np.inf), [('', '')] * len(qs)
         lower, exact, P = self._bounds(qs, exact_below=-np.inf)
+        cache: dict[tuple[int, int], Any] = {}
         d, pairs = np.empty(len(qs)), []
         for n in range(len(qs)):
             while True:             # best first: the smallest bound, made exact, until it is exact
                 p = int(np.argmin(lower[n]))
                 if exact[n, p]:
                     break
-                lower[n, p] = self._exact(P, n, p)
+                lower[n, p] = self._exact(P, n, p, cache)
                 exact[n, p] = True
             d[n] = lower[n, p]
             pairs.append(self._pair_names[p])

@@ -67,6 +67,16 @@ class Shape:
     triangles: np.ndarray | None = field(default=None, repr=False)
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Shape):
+            return NotImplemented
+        arrays = all(np.array_equal(a, b) if a is not None and b is not None else a is b
+                     for a, b in ((self.vertices, other.vertices), (self.triangles, other.triangles)))
+        return (self.kind, self.dimensions, self.mesh, self.scale) == \
+            (other.kind, other.dimensions, other.mesh, other.scale) and arrays
+
+    __hash__ = None  # type: ignore[assignment]  # mutable arrays inside
+
     def __post_init__(self) -> None:
         if self.kind == 'mesh':
             _check_mesh(self)

@@ -434,6 +434,7 @@ class GeodesicPlannerNode(Node):
         response.planning_time = time.perf_counter() - t0
         result = outcome.result
         response.fraction = 1.0 if result is not None else outcome.fraction
+        response.min_clearance = math.nan
         if result is not None:
             response.trajectory = result.trajectory
             response.tool_path = result.path
