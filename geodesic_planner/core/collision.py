@@ -412,7 +412,3 @@ class CollisionModel:
     def shapes(self) -> dict[str, Shape]:
         """The shapes of the bodies that have one (scene objects, capsule links), by name."""
         return {b.name: b.shape for b in self._bodies if b.shape is not None}
-
-    def with_scene_bodies(self) -> tuple[Body, ...]:
-        """All bodies, robot first (for plots)."""
-        return self._bodies

@@ -95,8 +95,14 @@ PRESETS: dict[str, Callable[[], Chain]] = {
 }
 
 
-def read_urdf_file(path: str) -> str:
-    """The text of a URDF file: a regular file (never a FIFO or device) of bounded size, UTF-8.
+def is_urdf_path(robot: str) -> bool:
+    """True when ``robot`` names a URDF file (a ``.urdf`` name or a path), not a preset."""
+    return robot.endswith('.urdf') or os.sep in robot
+
+
+def read_urdf_file(path: str, *, param: str = 'robot', kind: str = 'URDF') -> str:
+    """The text of a URDF file (or an SRDF: ``param``, ``kind`` name it in the errors): a regular
+    file (never a FIFO or device) of bounded size, UTF-8.
 
     Raises:
         RequestError: missing, unreadable, not a regular file, too large, or not UTF-8.
@@ -106,22 +112,22 @@ def read_urdf_file(path: str) -> str:
     try:
         info = os.stat(path)
         if not stat.S_ISREG(info.st_mode):
-            raise RequestError(f'robot: URDF {shown} is not a regular file')
+            raise RequestError(f'{param}: {kind} {shown} is not a regular file')
         if info.st_size > MAX_URDF_BYTES:
-            raise RequestError(f'robot: URDF {shown} has {info.st_size} bytes, more than {MAX_URDF_BYTES}')
+            raise RequestError(f'{param}: {kind} {shown} has {info.st_size} bytes, more than {MAX_URDF_BYTES}')
         # O_NONBLOCK: should the path become a FIFO after the check, open() still returns at once.
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
         with os.fdopen(fd, 'rb') as fh:
             data = fh.read(MAX_URDF_BYTES + 1)
     except (OSError, ValueError) as err:  # ValueError: a NUL byte in the path
         why = getattr(err, 'strerror', None) or str(err)
-        raise RequestError(f'robot: cannot read URDF {shown}: {why}') from err
+        raise RequestError(f'{param}: cannot read {kind} {shown}: {why}') from err
     if len(data) > MAX_URDF_BYTES:
-        raise RequestError(f'robot: URDF {shown} has more than {MAX_URDF_BYTES} bytes')
+        raise RequestError(f'{param}: {kind} {shown} has more than {MAX_URDF_BYTES} bytes')
     try:
         return data.decode('utf-8')
     except UnicodeDecodeError as err:
-        raise RequestError(f'robot: URDF {shown} is not UTF-8 text ({err.reason} at byte {err.start})') from err
+        raise RequestError(f'{param}: {kind} {shown} is not UTF-8 text ({err.reason} at byte {err.start})') from err
 
 
 def load_robot(name_or_path: str, *, base_link: str | None = None, tip_link: str | None = None) -> Chain:
@@ -142,7 +148,7 @@ def load_robot(name_or_path: str, *, base_link: str | None = None, tip_link: str
             raise RequestError(f'robot: base_link/tip_link apply to URDF models, not to the preset '
                                f'{name_or_path!r}')
         return PRESETS[name_or_path]()
-    if name_or_path.endswith('.urdf') or os.sep in name_or_path:
+    if is_urdf_path(name_or_path):
         from .urdf import chain_from_urdf
         return chain_from_urdf(read_urdf_file(name_or_path), base_link=base_link, tip_link=tip_link)
     raise RequestError(

@@ -13,8 +13,7 @@ from typing import Any
 from ..core.collision import CollisionModel
 from ..core.errors import RequestError, quoted
 from ..core.kinematics import Chain
-from ..core.robots import read_urdf_file
-from ..core.urdf_xml import MAX_URDF_BYTES
+from ..core.robots import is_urdf_path, read_urdf_file
 
 
 def package_dirs(given: Sequence[str] = ()) -> list[str]:
@@ -29,10 +28,7 @@ def read_srdf(path: str) -> str:
     Raises:
         RequestError: missing, unreadable, too large or not UTF-8 (the message names ``srdf``).
     """
-    try:
-        return read_urdf_file(path)
-    except RequestError as err:
-        raise RequestError(str(err).replace('robot: URDF', 'srdf:', 1)) from err
+    return read_urdf_file(path, param='srdf', kind='SRDF')
 
 
 def collision_model(robot: Chain, urdf: str | None, *, srdf: str = '', packages: Sequence[str] = (),
@@ -52,8 +48,6 @@ def collision_model(robot: Chain, urdf: str | None, *, srdf: str = '', packages:
         GeodesicPlannerError: a file that cannot be read, a mesh not found, a bad value.
     """
     dirs = package_dirs(packages)
-    if urdf is not None and len(urdf) > MAX_URDF_BYTES:
-        raise RequestError(f'URDF: more than {MAX_URDF_BYTES} characters')
     model = CollisionModel.for_robot(robot, urdf, package_dirs=dirs,
                                      srdf=read_srdf(srdf) if srdf.strip() else None, padding=padding,
                                      exact_meshes=exact_meshes, link_radius=link_radius)
@@ -69,26 +63,25 @@ def collision_model(robot: Chain, urdf: str | None, *, srdf: str = '', packages:
 
 #: The parameters a collision model is built from (besides the robot's).
 PARAMETERS = ('collision_padding', 'link_radius', 'exact_meshes', 'srdf', 'package_dirs', 'scene')
-_ROBOT = ('robot', 'robot_description', 'base_link', 'tip_link', 'joint_names')
 
 
-def collision_for_parameters(values: Mapping[str, Any], robot: Chain, previous: CollisionModel | None,
-                             previous_key: tuple) -> tuple[CollisionModel | None, tuple]:
+def collision_for_parameters(values: Mapping[str, Any], robot: Chain, robot_key: tuple,
+                             previous: CollisionModel | None, previous_key: tuple
+                             ) -> tuple[CollisionModel | None, tuple]:
     """The collision model for the planner's parameter values (None when ``collision_check`` is
-    false) and its key; ``previous`` is reused while the key is unchanged, so that a scene changed
-    at run time stays.
+    false) and its key (``robot_key``, the key of the robot's parameters, plus :data:`PARAMETERS`);
+    ``previous`` is reused while the key is unchanged, so that a scene changed at run time stays.
 
     Raises:
         GeodesicPlannerError: a file that cannot be read, a mesh not found, a bad value.
     """
     if not values['collision_check']:
         return None, ()
-    key = tuple(str(values[k]) for k in _ROBOT + PARAMETERS)
+    key = robot_key + tuple(str(values[k]) for k in PARAMETERS)
     if previous is not None and previous_key == key:
         return previous, key
     description, source = str(values['robot_description']), str(values['robot'])
-    is_file = source.endswith('.urdf') or os.sep in source
-    urdf = description if description.strip() else (read_urdf_file(source) if is_file else None)
+    urdf = description if description.strip() else (read_urdf_file(source) if is_urdf_path(source) else None)
     model = collision_model(
         robot, urdf, srdf=str(values['srdf']), packages=list(values['package_dirs'] or ()),
         padding=float(values['collision_padding']), link_radius=float(values['link_radius']),

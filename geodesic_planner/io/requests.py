@@ -144,13 +144,26 @@ def load_request(path: str) -> PlanRequest:
     Raises:
         RequestError: unreadable file, malformed YAML, or an invalid request.
     """
+    data = read_yaml(path, f'request {path!r}', repr(path))
+    return parse_request(data, os.path.dirname(os.path.abspath(path)))
+
+
+def read_yaml(path: str, what: str, in_what: str) -> object:
+    """The document of a YAML file.
+
+    Args:
+        path: the file.
+        what, in_what: how the errors name it: ``cannot read <what>``, ``malformed YAML in
+            <in_what> at line L, column C``.
+    Raises:
+        RequestError: unreadable file or malformed YAML.
+    """
     try:
         with open(path, encoding='utf-8') as fh:
-            data = yaml.safe_load(fh)
+            return yaml.safe_load(fh)
     except OSError as err:
-        raise RequestError(f'cannot read request {path!r}: {err.strerror}') from err
+        raise RequestError(f'cannot read {what}: {err.strerror}') from err
     except yaml.YAMLError as err:
         mark = getattr(err, 'problem_mark', None)
         where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
-        raise RequestError(f'malformed YAML in {path!r}{where}: {getattr(err, "problem", err)}') from err
-    return parse_request(data, os.path.dirname(os.path.abspath(path)))
+        raise RequestError(f'malformed YAML in {in_what}{where}: {getattr(err, "problem", err)}') from err

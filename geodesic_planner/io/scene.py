@@ -31,11 +31,11 @@ from collections.abc import Callable, Mapping, Sequence
 from urllib.parse import unquote
 
 import numpy as np
-import yaml
 
 from ..core.collision import MAX_OBJECTS, SceneObject, Shape
 from ..core.errors import RequestError, quoted
 from ..core.transforms import pose_from_mapping, pose_to_transform
+from .requests import read_yaml
 
 #: Most objects one scene file may hold: as many as a collision model takes.
 MAX_SCENE_OBJECTS = MAX_OBJECTS
@@ -317,16 +317,7 @@ def load_scene(path: str, *, package_dirs: Sequence[str] = ()) -> list[SceneObje
     Raises:
         RequestError: unreadable file, malformed YAML, or an invalid scene (see :func:`parse_scene`).
     """
-    try:
-        with open(path, encoding='utf-8') as fh:
-            data = yaml.safe_load(fh)
-    except OSError as err:
-        raise RequestError(f'cannot read scene {quoted(path)}: {err.strerror}') from err
-    except yaml.YAMLError as err:
-        mark = getattr(err, 'problem_mark', None)
-        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
-        raise RequestError(f'malformed YAML in scene {quoted(path)}{where}: '
-                           f'{getattr(err, "problem", err)}') from err
+    data = read_yaml(path, f'scene {quoted(path)}', f'scene {quoted(path)}')
     return parse_scene(data, os.path.dirname(os.path.abspath(path)), package_dirs=package_dirs)
 
 

@@ -17,7 +17,6 @@ sampled every ``sample_period`` s with positions, velocities and accelerations a
 from __future__ import annotations
 
 import math
-import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -44,6 +43,7 @@ from ..core.errors import (BVPError, FrameError, GeodesicPlannerError, IKError, 
 from ..core.branches import first_clear, start_branches
 from ..core.kinematics import Chain
 from ..core.path import JointPath
+from ..core.robots import is_urdf_path
 from ..io.collision_setup import collision_for_parameters
 from ..io.joint_limits import apply_joint_limits, load_joint_limits
 from ..io.requests import PlanRequest
@@ -223,7 +223,7 @@ def load_model(robot: str, robot_description: str, base_link: str, tip_link: str
 
 def _is_urdf_source(robot: str, robot_description: str) -> bool:
     """True when the model comes from a URDF (which has no acceleration limits), not a preset."""
-    return bool(robot_description.strip()) or robot.endswith('.urdf') or os.sep in robot
+    return bool(robot_description.strip()) or is_urdf_path(robot)
 
 
 def _joint_limits_file(path: str, robot: Chain, accel_known: np.ndarray
@@ -332,7 +332,8 @@ def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) 
             raise ConfigError(f'cannot build the planner: {err}') from err
     try:
         collision, collision_key = collision_for_parameters(
-            values, robot, previous.collision if previous else None, previous.collision_key if previous else ())
+            values, robot, robot_key + (names,), previous.collision if previous else None,
+            previous.collision_key if previous else ())
     except GeodesicPlannerError as err:
         raise ConfigError(f'collision model: {err}') from err
     return PlannerConfig(
