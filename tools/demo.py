@@ -18,10 +18,12 @@ namespace). Steps:
 6. via poses with blends: ask ``/geodesic_planner/plan_trajectory`` (PlanTrajectory, plan only)
    twice for a 5-pose sequence (start, 3 via poses, goal; :func:`via_sequence`), with
    ``blend_radius`` 0 (rest at every via pose) and > 0 (:func:`via_blend_radius`: pass them
-   without stopping); then stop the planner;
-7. read both trajectories back from the bag (:func:`geodesic_planner.io.bags.read_trajectories`),
+   without stopping);
+7. collisions (:mod:`tools.demo_collision`): a box across the start -> goal line is refused with
+   the pair named, moved aside (same service) and planned; then stop the planner;
+8. read both trajectories back from the bag (:func:`geodesic_planner.io.bags.read_trajectories`),
    print a summary and write ``DIR/summary.json``, ``DIR/trajectory.png`` and
-   ``DIR/via_blend.png`` (tool path and tool speed of both via plans).
+   ``DIR/via_blend.png`` (tool path and tool speed of both via plans) and ``DIR/collision.png``.
 
 A node that dies or a wait that times out prints the node's log tail and exits with 1.
 
@@ -44,9 +46,11 @@ from typing import Any
 
 import numpy as np
 
+from geodesic_planner.core.collision import DEFAULT_PADDING
 from geodesic_planner.core.errors import GeodesicPlannerError
 from geodesic_planner.core.kinematics import Chain
 from tools import netns
+from tools.demo_collision import collision_summary, run_collision_step, say_summary
 from tools.process import NodeProcess, ToolError, popen_node, wait_until
 
 __all__ = ['DemoError', 'main', 'paper_poses', 'run_demo', 'segment_deviation',
@@ -235,7 +239,7 @@ def _prepare_output(out: Path) -> Path:
             raise DemoError(f'{bag} exists and is not a bag from an earlier run: remove it or '
                             'choose another --output')
         shutil.rmtree(bag) if bag.is_dir() else bag.unlink()
-    for old in ('summary.json', 'trajectory.png', 'via_blend.png'):
+    for old in ('summary.json', 'trajectory.png', 'via_blend.png', 'collision.png'):
         (out / old).unlink(missing_ok=True)
     return bag
 
@@ -345,6 +349,11 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
                 reason = 'no reply' if reply is None else f'{reply.error_code.val}: {reply.message}'
                 raise DemoError(f'the via plan with blend_radius {r:g} m failed ({reason})')
             via_plans[r] = reply
+
+        def answer(future: Any, what: str) -> Any:  # noqa: ANN401
+            wait_until(future.done, timeout, what=f'the response of {what}', watch=[planner])
+            return future.result()
+        step = run_collision_step(node, via_client, robot, start_T, goal_T, timeout, answer, say)
         say('stopping the planner (SIGINT)...')
         rc = planner.stop()
         if rc != 0:
@@ -372,7 +381,9 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
     via = _via_blend(output, robot, via_poses, radius,
                      {r: joint_trajectory_to_arrays(reply.trajectory) for r, reply in via_plans.items()},
                      list(via_plans[radius].blend_deviation))
-    return _summarise(bag_dir, output, robot, start_T, goal_T, latency_ms, via, say)
+    collision = collision_summary(output, robot, start_T, goal_T, step, DEFAULT_PADDING)
+    return _summarise(bag_dir, output, robot, start_T, goal_T, latency_ms, {'via_blend': via,
+                      'collision': collision}, say)
 
 
 def _via_blend(output: Path, robot: Any, poses: list[np.ndarray], radius: float,  # noqa: ANN401
@@ -403,7 +414,7 @@ def _via_blend(output: Path, robot: Any, poses: list[np.ndarray], radius: float,
 
 
 def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # noqa: ANN401
-               goal_T: np.ndarray, latency_ms: float, via: dict[str, Any],
+               goal_T: np.ndarray, latency_ms: float, extra: dict[str, Any],
                say: Callable[[str], None]) -> dict[str, Any]:
     from geodesic_planner.io.bags import read_trajectories
     from geodesic_planner.io.plotting import plot_trajectories
@@ -439,7 +450,7 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
         'service_latency_ms': latency_ms,
         'bag': str(bag_dir),
         **parts,
-        'via_blend': via,
+        **extra,
     }
     (output / 'summary.json').write_text(json.dumps(summary, indent=1) + '\n')
     plot_trajectories(output / 'trajectory.png', columns,
@@ -455,13 +466,15 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
     say(f'  duration ratio processed/planned: {r["duration_s"] / p["duration_s"]:.4f} '
         f'(1/velocity_scaling = {1 / VELOCITY_SCALING:g})')
     say(f'  goal reached within {max(p["goal_position_error_m"], r["goal_position_error_m"]):.2e} m')
+    via = extra['via_blend']
     stop, blend = via['stopping'], via['blended']
     say(f'  via poses ({len(via["poses"]) - 2}, PlanTrajectory): stopping {stop["duration_s"]:.3f} s, '
         f'blended (blend_radius {via["blend_radius_m"]:g} m) {blend["duration_s"]:.3f} s, time saved '
         f'{via["time_saved_s"]:.3f} s; corner cut per via pose '
         + ', '.join(f'{d:.3g}' for d in blend['blend_deviation_m']) + ' m')
+    say_summary(extra['collision'], say)
     say(f'wrote {output / "summary.json"}, {output / "trajectory.png"}, {output / "via_blend.png"}, '
-        f'bag {bag_dir}')
+        f'{output / "collision.png"}, bag {bag_dir}')
     return summary
 
 

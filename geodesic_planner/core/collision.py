@@ -78,8 +78,8 @@ class MotionClearance:
     """What a motion check found.
 
     Attributes:
-        min_clearance: the smallest distance between checked bodies over the motion, m (inf when
-            nothing is checked).
+        min_clearance: the smallest distance between checked bodies over the whole motion, m, to
+            within :data:`RESOLUTION` below it, never above (inf when nothing is checked).
         pair: the two bodies that have it.
         time: where, s; fraction: where, as the path parameter s.
         checks: configurations evaluated.
@@ -354,8 +354,8 @@ class CollisionModel:
         pad, tol = self.padding, RESOLUTION
         times = np.linspace(0.0, T, 9) if T > 0.0 else np.zeros(1)
         qs, s = positions(times)
-        D, _, _ = self._bounds(np.asarray(qs, dtype=float), exact_below=pad + tol + R * (times[-1] - times[0]) / 8)
-        all_t, all_s, all_D = [times], [np.asarray(s, dtype=float)], [D]
+        D, E, P = self._bounds(np.asarray(qs, dtype=float), exact_below=pad + tol + R * (times[-1] - times[0]) / 8)
+        all_t, all_s, all_D, all_E, all_P = [times], [np.asarray(s, dtype=float)], [D], [E], [P]
         self._stop_at_ends(D, times, np.asarray(s, dtype=float))
         ta, tb, Da, Db = times[:-1], times[1:], D[:-1], D[1:]
         checks = len(times)
@@ -372,11 +372,13 @@ class CollisionModel:
                 break
             tm = 0.5 * (ta + tb)
             qm, sm = positions(tm)
-            Dm, _, _ = self._bounds(np.asarray(qm, dtype=float), exact_below=pad + tol + R * (tm - ta).max())
+            Dm, Em, Pm = self._bounds(np.asarray(qm, dtype=float), exact_below=pad + tol + R * (tm - ta).max())
             checks += tm.size
             all_t.append(tm)
             all_s.append(np.asarray(sm, dtype=float))
             all_D.append(Dm)
+            all_E.append(Em)
+            all_P.append(Pm)
             hit = np.any(Dm <= pad + tol, axis=1)
             if hit.any():
                 first = min(first, float(tm[hit].min()))
@@ -388,9 +390,71 @@ class CollisionModel:
             n = int(np.argmin(np.abs(t_all - first)))
             p = int(np.argmin(D_all[n]))
             self._raise('path', self._pair_names[p], float(D_all[n, p]), float(s_all[n]), float(t_all[n]))
-        n_min, p_min = (int(i) for i in np.unravel_index(int(np.argmin(D_all)), D_all.shape))
-        return MotionClearance(float(D_all[n_min, p_min]), self._pair_names[p_min], float(t_all[n_min]),
-                               float(s_all[n_min]), checks)
+        order = np.argsort(t_all, kind='stable')
+        return self._min_clearance(positions, R, t_all[order], s_all[order], D_all[order],
+                                   np.concatenate(all_E)[order], np.concatenate(all_P)[order], checks)
+
+    def _min_clearance(self, positions: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], R: np.ndarray,
+                       t: np.ndarray, s: np.ndarray, D: np.ndarray, E: np.ndarray, P: np.ndarray,
+                       checks: int) -> MotionClearance:
+        """The smallest distance over a clear motion, to within :data:`RESOLUTION` below.
+
+        Between two checked times a and b, pair p's distance is at least
+        ``(d(a) + d(b) - R_p (b - a)) / 2``. Intervals whose bound is below the smallest exact
+        distance found (U) less RESOLUTION are bisected, their ends made exact for that pair,
+        until none is; the result is the smallest bound left, never above the true minimum.
+        """
+        tol = RESOLUTION
+        caches: dict[int, dict[tuple[int, int], Any]] = {}
+
+        def exact(n: int, p: int) -> float:
+            if not E[n, p]:
+                D[n, p] = self._exact(P[n][None], 0, p, caches.setdefault(n, {}))
+                E[n, p] = True
+            return float(D[n, p])
+
+        while True:                 # best first: the smallest distance at the checked times, exact
+            n, p = (int(i) for i in np.unravel_index(int(np.argmin(D)), D.shape))
+            if E[n, p]:
+                break
+            exact(n, p)
+        U, where = float(D[n, p]), (p, float(t[n]), float(s[n]))
+        dt = np.diff(t)
+        lb = 0.5 * (D[:-1] + D[1:] - R[None, :] * dt[:, None])       # (intervals, pairs)
+        ia, pa = np.nonzero(lb < U - tol)
+        # the smallest bound set aside (a lower bound of the distance there)
+        lowest = float(np.where(lb < U - tol, np.inf, lb).min()) if lb.size else math.inf
+        for n, p in zip(np.concatenate([ia, ia + 1]), np.concatenate([pa, pa])):
+            d = exact(int(n), int(p))
+            if d < U:
+                U, where = d, (int(p), float(t[n]), float(s[n]))
+        ta, tb, Da, Db = t[ia], t[ia + 1], D[ia, pa], D[ia + 1, pa]
+        while pa.size:
+            checkpoint()
+            bound = 0.5 * (Da + Db - R[pa] * (tb - ta))
+            keep = bound < U - tol
+            if (~keep).any():
+                lowest = min(lowest, float(bound[~keep].min()))
+            ta, tb, Da, Db, pa, bound = ta[keep], tb[keep], Da[keep], Db[keep], pa[keep], bound[keep]
+            if not pa.size:
+                break
+            if checks + pa.size > MAX_CHECKS:
+                lowest = min(lowest, float(bound.min()))
+                break
+            tm = 0.5 * (ta + tb)
+            qm, sm = positions(tm)
+            Pm, _ = self._poses(self.robot.check_joints(np.asarray(qm, dtype=float), 'q'))
+            cache: dict[tuple[int, int], Any] = {}
+            dm = np.array([self._exact(Pm, k, int(p), cache) for k, p in enumerate(pa)])
+            checks += pa.size
+            k = int(np.argmin(dm))
+            if dm[k] < U:
+                U, where = float(dm[k]), (int(pa[k]), float(tm[k]), float(np.asarray(sm)[k]))
+            ta, tb = np.concatenate([ta, tm]), np.concatenate([tm, tb])
+            Da, Db = np.concatenate([Da, dm]), np.concatenate([dm, Db])
+            pa = np.concatenate([pa, pa])
+        p_min, t_min, s_min = where
+        return MotionClearance(min(U, lowest), self._pair_names[p_min], t_min, s_min, checks)
 
     def _stop_at_ends(self, D: np.ndarray, times: np.ndarray, s: np.ndarray) -> None:
         """Raise for a start or goal within the padding (exact there: the bound is small)."""

@@ -148,6 +148,22 @@ def test_demo_end_to_end(tmp_path: Path) -> None:
     assert all(v > 0.05 * blend['peak_tool_speed_m_s'] for v in blend['tool_speed_at_via_m_s'])  # no stop
     assert via['time_saved_s'] == pytest.approx(stop['duration_s'] - blend['duration_s'], abs=1e-12)
     assert blend['duration_s'] <= stop['duration_s']           # not stopping saves time
+    # Collisions: a 0.3 m box across the line at (2, 2) is refused, at (2.3, 2.3) it is planned.
+    col = summary['collision']
+    refused, planned = col['refused'], col['planned']
+    assert refused['error_code'] == -2, refused          # INVALID_MOTION_PLAN
+    assert "'box'" in refused['message'] and "'link_3'" in refused['message'], refused['message']
+    # the tool (the end of link_3's capsule, radius 0.05) at (2.5 - s, 1.5 + s) comes within
+    # radius + padding 0.01 of the box's corner (2.15, 1.85) at s_tip: refused no later
+    assert 0.2 < refused['fraction'] <= 0.35 - 0.06 / math.sqrt(2.0) + 1e-6
+    assert planned['error_code'] == 1 and planned['ik_branch'] == 'default'
+    # moved aside: the nearest box corner (2.15, 2.15) is 0.3 / sqrt(2) from the line, the tool
+    # passes its foot (2, 2); min_clearance is within 1 mm below that less the capsule radius
+    exact = 0.3 / math.sqrt(2.0) - 0.05
+    assert exact - 1e-3 - 1e-6 <= planned['min_clearance_m'] <= exact + 1e-6, planned
+    assert col['min_clearance_aside_samples_m'] >= planned['min_clearance_m'] - 1e-9
+    assert re.search(r'collision: box across the line refused at [\d.]+ % of the way', result.stdout)
+    assert (out / 'collision.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert (out / 'bag' / 'metadata.yaml').is_file()
     from geodesic_planner.io.bags import read_trajectories
     topics = sorted({r.topic for r in read_trajectories(out / 'bag')})
