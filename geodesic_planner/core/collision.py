@@ -54,8 +54,8 @@ from .errors import (
 )
 from .kinematics import Chain
 
-__all__ = ['DEFAULT_LINK_RADIUS', 'DEFAULT_PADDING', 'RESOLUTION', 'CollisionModel', 'MotionClearance',
-           'SceneObject', 'Shape']
+__all__ = ['CLEARANCE_TOLERANCE', 'DEFAULT_LINK_RADIUS', 'DEFAULT_PADDING', 'RESOLUTION', 'CollisionModel',
+           'MotionClearance', 'SceneObject', 'Shape']
 
 #: Default ``collision_padding``: the clearance every checked pair keeps, m.
 DEFAULT_PADDING = 0.01
@@ -63,6 +63,8 @@ DEFAULT_PADDING = 0.01
 DEFAULT_LINK_RADIUS = 0.05
 #: A motion is refused where a distance comes within this of the padding, m.
 RESOLUTION = 1e-3
+#: min_clearance is within max(RESOLUTION, this fraction of it) below the true smallest distance.
+CLEARANCE_TOLERANCE = 0.1
 #: Largest number of configurations one motion check evaluates before it refuses.
 MAX_CHECKS = 20_000
 #: Largest number of scene objects.
@@ -79,7 +81,8 @@ class MotionClearance:
 
     Attributes:
         min_clearance: the smallest distance between checked bodies over the whole motion, m, to
-            within :data:`RESOLUTION` below it, never above (inf when nothing is checked).
+            within max(:data:`RESOLUTION`, :data:`CLEARANCE_TOLERANCE` of it) below it, never
+            above (inf when nothing is checked).
         pair: the two bodies that have it.
         time: where, s; fraction: where, as the path parameter s.
         checks: configurations evaluated.
@@ -397,15 +400,18 @@ class CollisionModel:
     def _min_clearance(self, positions: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], R: np.ndarray,
                        t: np.ndarray, s: np.ndarray, D: np.ndarray, E: np.ndarray, P: np.ndarray,
                        checks: int) -> MotionClearance:
-        """The smallest distance over a clear motion, to within :data:`RESOLUTION` below.
+        """The smallest distance over a clear motion, to within max(:data:`RESOLUTION`,
+        :data:`CLEARANCE_TOLERANCE` of it) below.
 
         Between two checked times a and b, pair p's distance is at least
         ``(d(a) + d(b) - R_p (b - a)) / 2``. Intervals whose bound is below the smallest exact
-        distance found (U) less RESOLUTION are bisected, their ends made exact for that pair,
+        distance found (U) less that tolerance are bisected, their ends made exact for that pair,
         until none is; the result is the smallest bound left, never above the true minimum.
         """
-        tol = RESOLUTION
         caches: dict[int, dict[tuple[int, int], Any]] = {}
+
+        def below(u: float) -> float:        # bounds under this are refined
+            return u - max(RESOLUTION, CLEARANCE_TOLERANCE * u)
 
         def exact(n: int, p: int) -> float:
             if not E[n, p]:
@@ -421,9 +427,9 @@ class CollisionModel:
         U, where = float(D[n, p]), (p, float(t[n]), float(s[n]))
         dt = np.diff(t)
         lb = 0.5 * (D[:-1] + D[1:] - R[None, :] * dt[:, None])       # (intervals, pairs)
-        ia, pa = np.nonzero(lb < U - tol)
+        ia, pa = np.nonzero(lb < below(U))
         # the smallest bound set aside (a lower bound of the distance there)
-        lowest = float(np.where(lb < U - tol, np.inf, lb).min()) if lb.size else math.inf
+        lowest = float(np.where(lb < below(U), np.inf, lb).min()) if lb.size else math.inf
         for n, p in zip(np.concatenate([ia, ia + 1]), np.concatenate([pa, pa])):
             d = exact(int(n), int(p))
             if d < U:
@@ -432,7 +438,7 @@ class CollisionModel:
         while pa.size:
             checkpoint()
             bound = 0.5 * (Da + Db - R[pa] * (tb - ta))
-            keep = bound < U - tol
+            keep = bound < below(U)
             if (~keep).any():
                 lowest = min(lowest, float(bound[~keep].min()))
             ta, tb, Da, Db, pa, bound = ta[keep], tb[keep], Da[keep], Db[keep], pa[keep], bound[keep]
@@ -442,14 +448,16 @@ class CollisionModel:
                 lowest = min(lowest, float(bound.min()))
                 break
             tm = 0.5 * (ta + tb)
-            qm, sm = positions(tm)
+            tu, at = np.unique(tm, return_inverse=True)    # one configuration per time
+            qm, sm = positions(tu)
             Pm, _ = self._poses(self.robot.check_joints(np.asarray(qm, dtype=float), 'q'))
             cache: dict[tuple[int, int], Any] = {}
-            dm = np.array([self._exact(Pm, k, int(p), cache) for k, p in enumerate(pa)])
-            checks += pa.size
+            dm = np.array([self._exact(Pm, int(k), int(p), cache) for k, p in zip(at, pa)])
+            sm = np.asarray(sm)[at]
+            checks += tu.size
             k = int(np.argmin(dm))
             if dm[k] < U:
-                U, where = float(dm[k]), (int(pa[k]), float(tm[k]), float(np.asarray(sm)[k]))
+                U, where = float(dm[k]), (int(pa[k]), float(tm[k]), float(sm[k]))
             ta, tb = np.concatenate([ta, tm]), np.concatenate([tm, tb])
             Da, Db = np.concatenate([Da, dm]), np.concatenate([dm, Db])
             pa = np.concatenate([pa, pa])

@@ -26,7 +26,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from geodesic_planner import GeodesicPlanner, load_robot
-from geodesic_planner.core.collision import (DEFAULT_LINK_RADIUS, DEFAULT_PADDING, CollisionModel,
+from geodesic_planner.core.collision import (CLEARANCE_TOLERANCE, DEFAULT_LINK_RADIUS, DEFAULT_PADDING, CollisionModel,
                                              MotionClearance, SceneObject, Shape)
 from geodesic_planner.core.errors import (CollisionError, GeodesicPlannerError, GoalInCollisionError,
                                           PathInCollisionError, StartInCollisionError)
@@ -290,7 +290,7 @@ def test_line_passing_under_a_box_reports_its_least_clearance(line_path):
     model = CollisionModel.for_robot(line_path.robot).with_objects([ball(CROSS_R, CROSS_OFFSET), box])
     result = model.check_motion(motion(traj), traj.duration, traj.max_velocity)
     assert isinstance(result, MotionClearance)
-    assert gap - RESOLUTION - DIST_TOL <= result.min_clearance <= gap + DIST_TOL   # never above
+    assert (1 - CLEARANCE_TOLERANCE) * gap - DIST_TOL <= result.min_clearance <= gap + DIST_TOL   # never above
     assert same_pair(result.pair, 'ball', 'box'), result.pair
     width = CROSS_BOX_SIZE[0] / (X_B - X_A)                          # the box's span in s
     s_in = (FACE - X_A) / (X_B - X_A)
@@ -301,7 +301,7 @@ def test_line_passing_under_a_box_reports_its_least_clearance(line_path):
 
 def test_least_clearance_between_checks_is_not_overstated(line_path):
     """A ball passing a fixed ball: the distance has a sharp minimum (gap at s0, an arbitrary place
-    no check is sure to land on). min_clearance is within RESOLUTION below the gap, never above."""
+    no check is sure to land on). min_clearance is within the tolerance below the gap, never above."""
     on_line(line_path, CROSS_OFFSET)
     traj = line_path.timed()
     gap, r_fixed, s0 = 0.04, 0.05, 0.3717
@@ -310,10 +310,11 @@ def test_least_clearance_between_checks_is_not_overstated(line_path):
     model = CollisionModel.for_robot(line_path.robot).with_objects([ball(CROSS_R, CROSS_OFFSET), fixed])
     result = model.check_motion(motion(traj), traj.duration, traj.max_velocity)
     assert same_pair(result.pair, 'ball', 'post'), result.pair
-    assert gap - RESOLUTION - DIST_TOL <= result.min_clearance <= gap + DIST_TOL, result.min_clearance
-    # the place: where the sphere-sphere distance is within RESOLUTION of the gap
+    tol = max(RESOLUTION, CLEARANCE_TOLERANCE * gap)
+    assert gap - tol - DIST_TOL <= result.min_clearance <= gap + DIST_TOL, result.min_clearance
+    # the place: where the sphere-sphere distance is within the tolerance of the gap
     dx = X_B - X_A
-    assert abs(result.fraction - s0) * dx <= np.sqrt((gap + RESOLUTION + CROSS_R + r_fixed) ** 2
+    assert abs(result.fraction - s0) * dx <= np.sqrt((gap + tol + CROSS_R + r_fixed) ** 2
                                                      - (gap + CROSS_R + r_fixed) ** 2) + 1e-6
     # independently: exact sphere-sphere distances at 2001 times are never below it
     t = np.linspace(0.0, traj.duration, 2001)
@@ -381,7 +382,7 @@ def test_free_line_passes_and_the_ends_pass_check_state(line_path):
     model = CollisionModel.for_robot(line_path.robot).with_objects(
         [ball(CROSS_R, CROSS_OFFSET), cross_box(face=X_B + CROSS_R + 0.1)])   # 10 cm beyond the goal
     result = model.check_motion(motion(traj), traj.duration, traj.max_velocity)
-    assert 0.1 - RESOLUTION - DIST_TOL <= result.min_clearance <= 0.1 + DIST_TOL   # reached at the goal
+    assert 0.1 * (1 - CLEARANCE_TOLERANCE) - DIST_TOL <= result.min_clearance <= 0.1 + DIST_TOL  # at the goal
     assert result.fraction == 1.0
     assert same_pair(result.pair, 'ball', 'box')
     assert model.check_state(line_path.q_start) > model.padding
