@@ -187,4 +187,3 @@ def say_summary(part: dict[str, Any], say: Callable[[str], None]) -> None:
         f'(first sample within the padding: {100 * part["first_sample_within_padding_fraction"]:.1f} %); '
         f'moved aside, planned with min_clearance {ok["min_clearance_m"]:.4f} m '
         f'(samples {part["min_clearance_aside_samples_m"]:.4f} m)')
-

@@ -409,6 +409,11 @@ class GeodesicPath(JointPath):
         a, dddq = self.equations.jerk(q, dq)
         return q, dq, a, dddq
 
+    def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, ...]:
+        """q and its first three s-derivatives from the solution's spline (see
+        :meth:`JointPath.interpolate`)."""
+        return tuple(self._spline(check_s(s), order=3))
+
     def metric_speed(self, s: np.ndarray) -> np.ndarray:
         """sqrt(q'ᵀ G q') at s: constant (= length) along an exact geodesic."""
         q, dq = self.evaluate(s, order=1)

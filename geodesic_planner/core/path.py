@@ -72,6 +72,13 @@ class JointPath(ABC):
         third derivative needs the Jacobians of the geodesic equations).
         """
 
+    def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, ...]:
+        """q and its first three s-derivatives at s, for sampling a time law: from the path's own
+        interpolant where it has one (a solver's spline: q and dq/ds are the path's, the second and
+        third derivatives agree with :meth:`evaluate` within the solver's tolerance, at a fraction
+        of the cost), else :meth:`evaluate`. Each (len(s), dof); rad or m."""
+        return self.evaluate(s, 3)
+
     @property
     def joint_names(self) -> list[str]:
         """Joint names in the robot's order."""

@@ -79,6 +79,17 @@ class PiecewiseGeodesicPath(JointPath):
                 out[k][sel] = arr / w**k
         return tuple(out)
 
+    def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Each piece's :meth:`~.path.JointPath.interpolate`, at global s (the chain rule of
+        :meth:`evaluate`)."""
+        s = check_s(s)
+        out = [np.empty((s.size, self.dof)) for _ in range(4)]
+        for i, sel, u in by_segment(self.breakpoints, s):
+            w = self.breakpoints[i + 1] - self.breakpoints[i]
+            for k, arr in enumerate(self.pieces[i].interpolate(u)):
+                out[k][sel] = arr / w**k
+        return tuple(out)
+
     def line_deviation(self, samples: int = 101) -> float:
         """Largest distance (m) of the tool position from each piece's straight segment."""
         return max(piece.line_deviation(samples) for piece in self.pieces)

@@ -44,9 +44,10 @@ def quintic_coefficients(
 
 
 def evaluate_polynomials(c: np.ndarray, t: np.ndarray, times: np.ndarray, order: int = 2) -> tuple[np.ndarray, ...]:
-    """Evaluate piecewise polynomials (N-1, 6, dof) at times (M,): position, velocity, acceleration.
+    """Evaluate piecewise polynomials (N-1, 6, dof) at times (M,): position, velocity, acceleration
+    and (``order`` 3) jerk.
 
-    ``order`` < 2 returns only the first ``order + 1`` of them.
+    ``order`` < 3 returns only the first ``order + 1`` of them.
     """
     seg = np.minimum(np.maximum(np.searchsorted(t, times, side='right') - 1, 0), len(t) - 2)
     tau = (times - t[seg])[:, None]
@@ -54,18 +55,21 @@ def evaluate_polynomials(c: np.ndarray, t: np.ndarray, times: np.ndarray, order:
     pos = cs[:, 5]
     vel = 5.0 * cs[:, 5]
     acc = 20.0 * cs[:, 5]
+    jerk = 60.0 * cs[:, 5]
     for k in (4, 3, 2, 1, 0):  # Horner over the 6 coefficients (fixed, not per sample)
         pos = pos * tau + cs[:, k]
         if k >= 1 and order >= 1:
             vel = vel * tau + k * cs[:, k]
         if k >= 2 and order >= 2:
             acc = acc * tau + k * (k - 1) * cs[:, k]
-    return (pos, vel, acc)[:order + 1]
+        if k >= 3 and order >= 3:
+            jerk = jerk * tau + k * (k - 1) * (k - 2) * cs[:, k]
+    return (pos, vel, acc, jerk)[:order + 1]
 
 
 
 class Interpolant(Protocol):
-    """What a path needs of its interpolant: values and derivatives up to ``order`` (<= 2) at xs."""
+    """What a path needs of its interpolant: values and derivatives up to ``order`` (<= 3) at xs."""
 
     def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]: ...
 
@@ -86,8 +90,8 @@ class QuinticHermite:
         self._coefficients = quintic_coefficients(self.x, *(np.asarray(a, dtype=float) for a in (y, dy, ddy)))
 
     def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]:
-        """Values and derivatives up to ``order`` (<= 2) at xs (k,): list of (k, d) arrays."""
-        return list(evaluate_polynomials(self._coefficients, self.x, xs, order=min(order, 2)))
+        """Values and derivatives up to ``order`` (<= 3) at xs (k,): list of (k, d) arrays."""
+        return list(evaluate_polynomials(self._coefficients, self.x, xs, order=min(order, 3)))
 
 
 def split_intervals(s: np.ndarray, parts: np.ndarray) -> np.ndarray:

@@ -278,14 +278,14 @@ class ChebyshevPolynomial:
         self._nodes, D, D2 = chebyshev(m)
         self._Q = Q
         rel = Q - Q[0]                     # relative to the start: a still path stays exactly still
-        self._values = (rel, D @ rel, D2 @ rel)
+        self._values = (rel, D @ rel, D2 @ rel, D @ (D2 @ rel))
 
     def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]:
-        """Values and derivatives up to ``order`` (<= 2) at xs (k,): list of (k, dof) arrays; at a
+        """Values and derivatives up to ``order`` (<= 3) at xs (k,): list of (k, dof) arrays; at a
         node, exactly its value."""
         xs = np.asarray(xs, dtype=float)
         B = interpolation_matrix(self.m, xs)
-        out = [B @ values for values in self._values[:min(order, 2) + 1]]
+        out = [B @ values for values in self._values[:min(order, 3) + 1]]
         out[0] += self._Q[0]
         k = np.searchsorted(self._nodes, xs).clip(0, self.m)
         on = self._nodes[k] == xs

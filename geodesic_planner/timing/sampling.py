@@ -1,6 +1,7 @@
-"""Path sampling for time laws: exact derivatives at nodes, cubic-Hermite in between.
+"""Path sampling for time laws: derivatives at nodes, cubic-Hermite in between.
 
-The path is evaluated on a uniform grid of s plus its breakpoints (``path.breakpoints``, optional;
+The path is evaluated (``path.interpolate``, its solver's spline, where it has one; else
+``path.evaluate``) on a uniform grid of s plus its breakpoints (``path.breakpoints``, optional;
 one-sided derivatives are read there, and where q' jumps, a corner, the motion must rest). Between
 the nodes, q' and q'' are cubic-Hermite interpolated from the exact q', q'', q''' at the nodes;
 steps where two independent interpolants disagree (a sharp feature of the path) are bisected with
@@ -131,6 +132,13 @@ class PathSamples:
 
 
 
+def _derivatives(path: PathLike, s: np.ndarray) -> tuple[np.ndarray, ...]:
+    """q and three s-derivatives at s: ``path.interpolate`` (its solver's spline) where the path
+    has it, else ``path.evaluate``."""
+    fn = getattr(path, 'interpolate', None)
+    return tuple(np.asarray(v, dtype=float) for v in (fn(s) if fn is not None else path.evaluate(s)))
+
+
 def sample_path(path: PathLike, grid_points: int) -> PathSamples:
     """Evaluate the path once: a uniform grid plus its breakpoints (``path.breakpoints``, optional)."""
     raw = getattr(path, 'breakpoints', None)
@@ -151,7 +159,7 @@ def sample_path(path: PathLike, grid_points: int) -> PathSamples:
     else:
         nodes = np.linspace(0.0, 1.0, grid_points + 1)
     s_eval = np.concatenate([nodes, interior - _LEFT_EPS])
-    _, a, b, c = (np.asarray(v, dtype=float) for v in path.evaluate(s_eval))
+    _, a, b, c = _derivatives(path, s_eval)
     if a.ndim != 2 or a.shape[0] != s_eval.size:
         raise LimitError(f'path.evaluate returned shape {a.shape}, expected ({s_eval.size}, dof)')
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(c))):
@@ -218,7 +226,7 @@ def refine_adaptively(path: PathLike, ps: PathSamples, tol: float = 1e-5, max_ro
             break
         idx = np.flatnonzero(bad)[: max_nodes - count]
         s_new = 0.5 * (s_l[idx] + s_r[idx])
-        _, a, b, c = (np.asarray(v, dtype=float) for v in path.evaluate(s_new))
+        _, a, b, c = _derivatives(path, s_new)
         new = np.hstack([a, b, c, a, b, c])
         if not np.all(np.isfinite(new)):
             raise LimitError('path derivatives contain NaN or inf')

@@ -49,7 +49,13 @@ CHECK_MARGIN = 1e-3
 #: Samples of the dense check (those nearest a limit) re-verified with exact path derivatives.
 EXACT_CHECKS = 32
 #: Extra limit-check samples spread uniformly in s (mapped to t).
-S_UNIFORM_CHECKS = 1000
+S_UNIFORM_CHECKS = 250
+#: Dense check: ``max(CHECK_SAMPLES, 5 nodes)`` samples uniform in t, then around each of the
+#: PEAK_CHECKS highest local peaks of the ratios PEAK_SAMPLES more within one sample spacing
+#: (the peaks are seen at a quarter of the spacing, as 4 x CHECK_SAMPLES uniform samples would).
+CHECK_SAMPLES = 1000
+PEAK_CHECKS = 16
+PEAK_SAMPLES = 8
 #: Local slow-down passes (see SmoothRestToRest) when the smoothed law needs a stretch above
 #: LOCAL_TRIGGER; each caps the optimal profile near the samples over a limit, LOCAL_MARGIN below.
 LOCAL_PASSES = 8
@@ -329,7 +335,8 @@ class SmoothRestToRest:
             interpolated in between (no further path evaluations); >= 1.
         smoothing: acceleration-ramp time as a fraction of the TOPP duration, in (0, 1]; the
             smooth law lasts about ``(1 + smoothing) * topp_duration``.
-        check_samples: time samples of the dense limit check (None: max(4000, 20 nodes)).
+        check_samples: time samples of the dense limit check, uniform in t (None:
+            max(CHECK_SAMPLES, 5 nodes)), before the samples around its peaks.
     Raises:
         LimitError: an option out of range (at construction).
     """
@@ -434,25 +441,17 @@ def local_cap(s_nodes: np.ndarray, x: np.ndarray, law: object, t: np.ndarray, ne
     return np.minimum(out, x / factor**LOCAL_POWER * (1.0 - LOCAL_MARGIN))
 
 
-def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarray, amax: np.ndarray,
-             check_samples: int | None, tool: ToolRows | None = None) -> LimitCheck:
-    """Uniform time stretch (>= 1) that keeps ``law`` within ``1 - CHECK_MARGIN`` of the limits.
+def _distinct(t: np.ndarray) -> np.ndarray:
+    """Times sorted, each once (from sorted runs: a cheap stable sort)."""
+    t = t[np.argsort(t, kind='stable')]
+    return t[np.concatenate([[True], t[1:] > t[:-1]])]
 
-    Dense check of the smoothed law against the full limits, with q', q'' interpolated from
-    ``ps`` (and the tool rows' twist from ``tool.samples``); the samples nearest a limit and the
-    breakpoints are re-checked with exact values.
-    """
-    m = int(check_samples) if check_samples is not None else max(4000, 20 * ps.s.size)
-    t_chk = np.linspace(0.0, law.duration, max(m, 10))
-    if law.n_pieces > 1:
-        t_chk = np.union1d(t_chk, law.t_offsets)
-    # Also samples about uniform in s: a long law can cross a stretch of the path in a fraction
-    # of its duration, where samples uniform in t are sparse. All in order of time (two sorted
-    # runs: a cheap stable sort), hence of s, for the interpolation.
-    t_chk = np.concatenate([t_chk, law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS))])
-    t_chk = t_chk[np.argsort(t_chk, kind='stable')]
-    t_chk = t_chk[np.concatenate([[True], t_chk[1:] > t_chk[:-1]])]  # distinct samples
-    s, sd, sdd, _ = law.evaluate(t_chk, jerk=False)
+
+def _ratios(ps: PathSamples, law: PiecewiseLaw, t: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
+            tool: ToolRows | None) -> tuple[np.ndarray, ...]:
+    """At sorted times t (M,): s, sdot, sddot and the largest velocity and acceleration ratios
+    to the limits over the joints (and the tool rows), q' and q'' interpolated from ``ps``."""
+    s, sd, sdd, _ = law.evaluate(t, jerk=False)
     a, b = ps.interpolate_t(s)
     vel = a * sd
     np.abs(vel, out=vel)
@@ -466,6 +465,39 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
     ra_t = a.max(axis=0)
     if tool is not None:
         rv_t = np.maximum(rv_t, tool.ratios(s, sd))
+    return s, sd, sdd, rv_t, ra_t
+
+
+def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarray, amax: np.ndarray,
+             check_samples: int | None, tool: ToolRows | None = None) -> LimitCheck:
+    """Uniform time stretch (>= 1) that keeps ``law`` within ``1 - CHECK_MARGIN`` of the limits.
+
+    Dense check of the smoothed law against the full limits, with q', q'' interpolated from
+    ``ps`` (and the tool rows' twist from ``tool.samples``); the samples nearest a limit and the
+    breakpoints are re-checked with exact values.
+    """
+    m = int(check_samples) if check_samples is not None else max(CHECK_SAMPLES, 5 * ps.s.size)
+    m = max(m, 10)
+    t_chk = np.linspace(0.0, law.duration, m)
+    if law.n_pieces > 1:
+        t_chk = np.union1d(t_chk, law.t_offsets)
+    # Also samples about uniform in s: a long law can cross a stretch of the path in a fraction
+    # of its duration, where samples uniform in t are sparse.
+    t_chk = _distinct(np.concatenate([t_chk, law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS))]))
+    s, sd, sdd, rv_t, ra_t = _ratios(ps, law, t_chk, vmax, amax, tool)
+    # Around the highest local peaks, samples at a quarter of the uniform spacing.
+    need = np.maximum(rv_t, np.sqrt(ra_t))
+    peak = np.flatnonzero((need[1:-1] >= need[:-2]) & (need[1:-1] >= need[2:])) + 1
+    if peak.size:
+        peak = peak[np.argsort(need[peak])[-PEAK_CHECKS:]]
+        h = law.duration / (m - 1)
+        offsets = np.linspace(-h, h, PEAK_SAMPLES + 2)[1:-1]
+        extra = np.sort(np.clip((t_chk[peak][:, None] + offsets).reshape(-1), 0.0, law.duration))
+        more = _ratios(ps, law, extra, vmax, amax, tool)
+        order = np.argsort(np.concatenate([t_chk, extra]), kind='stable')
+        t_chk = np.concatenate([t_chk, extra])[order]
+        s, sd, sdd, rv_t, ra_t = (np.concatenate([u, v])[order]
+                                  for u, v in zip((s, sd, sdd, rv_t, ra_t), more))
     rv, ra = float(rv_t.max()), float(ra_t.max())
     # The samples closest to a limit are verified with the exact path derivatives.
     need = np.maximum(rv_t, np.sqrt(ra_t))
