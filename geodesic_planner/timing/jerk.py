@@ -45,12 +45,15 @@ from ..core.errors import LimitError
 from ._arrays import clip
 from .law import JointLimits, PathLike, final_duration
 from .sampling import PathSamples, refine_adaptively, sample_path
-from .smoothing import (CHECK_MARGIN, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS, TOPP_MARGIN,
-                        local_cap)
+from .smoothing import (CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS,
+                        TOPP_MARGIN, local_cap, peak_samples)
 from .tool import ToolRows, tool_rows
 from .topp import topp
 from .trajectory import Trajectory
 
+#: Uniform time samples of the check while the width is searched (plus those near the jerk
+#: events and around the peaks); the law kept is checked again on CHECK_SAMPLES, exactly.
+SEARCH_SAMPLES = 250
 #: Width factors of the coarse scan (times the reference width), then golden-section steps.
 WIDTH_SCAN = (0.5, 0.71, 1.0, 1.41, 2.0, 2.83, 4.0)
 GOLDEN_STEPS = 5
@@ -249,9 +252,11 @@ class _Checker:
         """Coefficients of q''' per step of ``ps`` (:func:`third_derivative_coefficients`)."""
         return third_derivative_coefficients(self.ps)
 
-    def stretch(self, law: BoxLaw) -> float:
-        """Smallest uniform time stretch (>= 1) keeping ``law`` within 1 - CHECK_MARGIN of every limit."""
-        rv, ra, rj = self.ratios(law)
+    def stretch(self, law: BoxLaw, exact: bool = False) -> float:
+        """Smallest uniform time stretch (>= 1) keeping ``law`` within 1 - CHECK_MARGIN of every
+        limit; ``exact``: the samples nearest a limit with ``path.evaluate`` (else with
+        ``path.interpolate``, the solver's spline, as during the search)."""
+        rv, ra, rj = self.ratios(law, exact)
         target = 1.0 - CHECK_MARGIN
         return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target))
 
@@ -262,47 +267,63 @@ class _Checker:
         t, need = dense[0], dense[5]
         return t, need / (1.0 - CHECK_MARGIN)
 
-    def _dense(self, law: BoxLaw) -> tuple[np.ndarray, tuple[np.ndarray, ...], np.ndarray,
-                                           np.ndarray, np.ndarray, np.ndarray]:
+    def _dense(self, law: BoxLaw, full: bool = True) -> tuple[np.ndarray, tuple[np.ndarray, ...], np.ndarray,
+                                                              np.ndarray, np.ndarray, np.ndarray]:
         """The dense grid: times, (s, sd, sdd, sddd) there, per-sample v, a, j ratios, and each
-        sample's speed factor max(v, sqrt(a), cbrt(j)); the last law's is kept (read only)."""
-        if self._last and self._last[0] is law:
-            return self._last[1]  # type: ignore[return-value]
+        sample's speed factor max(v, sqrt(a), cbrt(j)); the last law's is kept (read only).
+        ``full``: CHECK_SAMPLES uniform samples (else SEARCH_SAMPLES, for comparing widths)."""
+        if self._last and self._last[0] is law and self._last[1] == full:
+            return self._last[2]  # type: ignore[return-value]
         ps, lim = self.ps, self.limits
         vmax, amax = lim.max_velocity, lim.max_acceleration
         jmax = lim.max_jerk if lim.max_jerk is not None else np.full(vmax.size, np.inf)
-        m = int(self.check_samples) if self.check_samples is not None else max(4000, 20 * ps.s.size)
+        m = max(10, int(self.check_samples) if self.check_samples is not None
+                else max(CHECK_SAMPLES, 5 * ps.s.size) if full else SEARCH_SAMPLES)
         ev = law.jerk_events()
         gap = np.diff(ev)
         keep = gap > 0
         e0, g = ev[:-1][keep], gap[keep]
-        t = np.concatenate([np.linspace(0.0, law.duration, max(m, 10)),
+        t = np.concatenate([np.linspace(0.0, law.duration, m),
                             law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS)),
                             e0 + 0.01 * g, e0 + 0.5 * g, e0 + 0.99 * g])
         t = np.unique(t)
-        s, sd, sdd, sddd = law.evaluate(t)
-        assert sddd is not None
-        a, b = ps.interpolate_t(s)
-        c = _third_derivative_t(ps, self.coef3, s)
-        rv_t = (np.abs(a * sd) / vmax[:, None]).max(axis=0)
-        ra_t = (np.abs(a * sdd + b * sd**2) / amax[:, None]).max(axis=0)
-        rj_t = (np.abs(a * sddd + 3.0 * b * (sd * sdd) + c * sd**3) / jmax[:, None]).max(axis=0)
-        if self.tool is not None:
-            rv_t = np.maximum(rv_t, self.tool.ratios(s, sd))
-        need = np.maximum(np.maximum(rv_t, np.sqrt(ra_t)), np.cbrt(rj_t))
+
+        def ratios(t: np.ndarray) -> tuple[np.ndarray, ...]:
+            s, sd, sdd, sddd = law.evaluate(t)
+            assert sddd is not None
+            a, b = ps.interpolate_t(s)
+            c = _third_derivative_t(ps, self.coef3, s)
+            rv_t = (np.abs(a * sd) / vmax[:, None]).max(axis=0)
+            ra_t = (np.abs(a * sdd + b * sd**2) / amax[:, None]).max(axis=0)
+            rj_t = (np.abs(a * sddd + 3.0 * b * (sd * sdd) + c * sd**3) / jmax[:, None]).max(axis=0)
+            if self.tool is not None:
+                rv_t = np.maximum(rv_t, self.tool.ratios(s, sd))
+            need = np.maximum(np.maximum(rv_t, np.sqrt(ra_t)), np.cbrt(rj_t))
+            return s, sd, sdd, sddd, rv_t, ra_t, rj_t, need
+
+        cols = ratios(t)
+        # Around the highest peaks, samples at a quarter of the uniform spacing.
+        extra = peak_samples(t, cols[-1], law.duration / (m - 1), law.duration)
+        if extra.size:
+            order = np.argsort(np.concatenate([t, extra]), kind='stable')
+            t = np.concatenate([t, extra])[order]
+            cols = tuple(np.concatenate([u, v])[order] for u, v in zip(cols, ratios(extra)))
+        s, sd, sdd, sddd, rv_t, ra_t, rj_t, need = cols
         out = (t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need)
-        self._last[:] = [law, out]
+        self._last[:] = [law, full, out]
         return out
 
-    def ratios(self, law: BoxLaw) -> tuple[float, float, float]:
-        """Largest |v| / vmax, |a| / amax (tool speed included in v) and |j| / jmax of ``law``."""
+    def ratios(self, law: BoxLaw, exact: bool = True) -> tuple[float, float, float]:
+        """Largest |v| / vmax, |a| / amax (tool speed included in v) and |j| / jmax of ``law``;
+        ``exact``: see :meth:`stretch`."""
         ps = self.ps
-        t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need = self._dense(law)
+        t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need = self._dense(law, full=exact)
         rv, ra, rj = float(rv_t.max()), float(ra_t.max()), float(rj_t.max())
         # The samples closest to a limit, with the exact path derivatives.
         k = max(1, min(EXACT_CHECKS, need.size))
         top = np.argpartition(need, -k)[-k:]
-        q_x, a_x, b_x, c_x = (np.asarray(v, dtype=float) for v in self.path.evaluate(s[top], order=3))
+        fn = self.path.evaluate if exact else getattr(self.path, 'interpolate', self.path.evaluate)
+        q_x, a_x, b_x, c_x = (np.asarray(v, dtype=float) for v in fn(s[top]))
         rv, ra, rj = self._max_ratios((rv, ra, rj), a_x, b_x, c_x, sd[top], sdd[top], sddd[top])
         if self.tool is not None:
             rv = max(rv, float(np.max(self.tool.exact_ratios(q_x, a_x, sd[top]))))
@@ -429,6 +450,8 @@ class JerkLimited:
         law, lam = best
         if lam > LOCAL_TRIGGER:     # a local dip the filter cannot follow: slow down near it
             law, lam = _local_passes(fine, best_x, best_beta, best, checker, cap, jmax)
+        # The search checked with the solver's spline near the limits; the law kept, exactly.
+        lam = checker.stretch(law, exact=True)
         t_min = lam * law.duration
         T = final_duration(duration, t_min)
         scale = float(T / law.duration)

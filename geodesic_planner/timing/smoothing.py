@@ -441,6 +441,17 @@ def local_cap(s_nodes: np.ndarray, x: np.ndarray, law: object, t: np.ndarray, ne
     return np.minimum(out, x / factor**LOCAL_POWER * (1.0 - LOCAL_MARGIN))
 
 
+def peak_samples(t: np.ndarray, need: np.ndarray, spacing: float, duration: float) -> np.ndarray:
+    """More check times (sorted) around the PEAK_CHECKS highest local peaks of ``need`` at sorted
+    times ``t``: PEAK_SAMPLES within ``spacing`` on either side of each, in [0, duration]."""
+    peak = np.flatnonzero((need[1:-1] >= need[:-2]) & (need[1:-1] >= need[2:])) + 1
+    if not peak.size:
+        return np.zeros(0)
+    peak = peak[np.argsort(need[peak])[-PEAK_CHECKS:]]
+    offsets = np.linspace(-spacing, spacing, PEAK_SAMPLES + 2)[1:-1]
+    return np.sort(np.clip((t[peak][:, None] + offsets).reshape(-1), 0.0, duration))
+
+
 def _distinct(t: np.ndarray) -> np.ndarray:
     """Times sorted, each once (from sorted runs: a cheap stable sort)."""
     t = t[np.argsort(t, kind='stable')]
@@ -487,12 +498,8 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
     s, sd, sdd, rv_t, ra_t = _ratios(ps, law, t_chk, vmax, amax, tool)
     # Around the highest local peaks, samples at a quarter of the uniform spacing.
     need = np.maximum(rv_t, np.sqrt(ra_t))
-    peak = np.flatnonzero((need[1:-1] >= need[:-2]) & (need[1:-1] >= need[2:])) + 1
-    if peak.size:
-        peak = peak[np.argsort(need[peak])[-PEAK_CHECKS:]]
-        h = law.duration / (m - 1)
-        offsets = np.linspace(-h, h, PEAK_SAMPLES + 2)[1:-1]
-        extra = np.sort(np.clip((t_chk[peak][:, None] + offsets).reshape(-1), 0.0, law.duration))
+    extra = peak_samples(t_chk, need, law.duration / (m - 1), law.duration)
+    if extra.size:
         more = _ratios(ps, law, extra, vmax, amax, tool)
         order = np.argsort(np.concatenate([t_chk, extra]), kind='stable')
         t_chk = np.concatenate([t_chk, extra])[order]
@@ -524,5 +531,5 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
     return LimitCheck(max(1.0, rv / target, math.sqrt(ra / target)), t_chk, need)
 
 
-__all__ = ['CHECK_MARGIN', 'LOCAL_PASSES', 'LOCAL_TRIGGER', 'TOPP_MARGIN', 'PiecewiseLaw',
-           'SmoothRestToRest', 'build_piecewise_law', 'local_cap']
+__all__ = ['CHECK_MARGIN', 'CHECK_SAMPLES', 'LOCAL_PASSES', 'LOCAL_TRIGGER', 'TOPP_MARGIN', 'PiecewiseLaw',
+           'SmoothRestToRest', 'build_piecewise_law', 'local_cap', 'peak_samples']
