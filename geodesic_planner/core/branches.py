@@ -71,7 +71,7 @@ def start_branches(planner: GeodesicPlanner, T_start: np.ndarray, default: np.nd
 
 
 def first_clear(attempt: Callable[[np.ndarray | None], tuple[Any, Any]], model: CollisionModel,
-                branches: Callable[[Any], list[np.ndarray]] | None = None
+                branches: Callable[[Any], list[np.ndarray]] | None = None, refine: bool = True
                 ) -> tuple[Any, Any, MotionClearance, str]:
     """Plan and time with the default start, check the motion, and try other start branches on a
     collision.
@@ -81,6 +81,7 @@ def first_clear(attempt: Callable[[np.ndarray | None], tuple[Any, Any]], model: 
             trajectory has ``duration``, ``max_velocity`` and ``s_of_t``, its ``path`` evaluates q(s).
         model: the collision model.
         branches: the first path -> other start joints to try (None: the start is fixed).
+        refine: as :meth:`CollisionModel.check_motion`'s.
     Returns:
         (path, trajectory, clearance, branch): branch is ``'default'``, or ``'k of n'`` (k >= 2)
         for the k-th of n branches tried.
@@ -90,7 +91,7 @@ def first_clear(attempt: Callable[[np.ndarray | None], tuple[Any, Any]], model: 
     """
     path, trajectory = attempt(None)
     try:
-        return path, trajectory, check_trajectory(model, trajectory), 'default'
+        return path, trajectory, check_trajectory(model, trajectory, refine), 'default'
     except CollisionError as err:
         if branches is None:
             raise
@@ -100,7 +101,7 @@ def first_clear(attempt: Callable[[np.ndarray | None], tuple[Any, Any]], model: 
     for k, q in enumerate(others, start=2):
         try:
             path, trajectory = attempt(q)
-            return path, trajectory, check_trajectory(model, trajectory), f'{k} of {len(others) + 1}'
+            return path, trajectory, check_trajectory(model, trajectory, refine), f'{k} of {len(others) + 1}'
         except GeodesicPlannerError as err:
             reasons.append(f'branch {k}: {err}')
     shown = '; '.join(r[:200] for r in reasons[:3])
@@ -109,8 +110,9 @@ def first_clear(attempt: Callable[[np.ndarray | None], tuple[Any, Any]], model: 
     raise first
 
 
-def check_trajectory(model: CollisionModel, trajectory: Any) -> MotionClearance:  # noqa: ANN401
-    """:meth:`CollisionModel.check_motion` of a timed trajectory.
+def check_trajectory(model: CollisionModel, trajectory: Any, refine: bool = True  # noqa: ANN401
+                     ) -> MotionClearance:
+    """:meth:`CollisionModel.check_motion` of a timed trajectory (``refine``: as there).
 
     The joint speed bound is the largest speed on a grid of :data:`SPEED_GRID` intervals plus what
     the acceleration limits allow between grid points (``a h / 2``): a bound, not an estimate.
@@ -129,4 +131,4 @@ def check_trajectory(model: CollisionModel, trajectory: Any) -> MotionClearance:
         sampled = np.abs(np.asarray(path.evaluate(s, order=1)[1]) * sd[:, None]).max(axis=0)
         h = duration / SPEED_GRID
         speed = np.minimum(speed, sampled + 0.5 * h * np.asarray(trajectory.max_acceleration, dtype=float))
-    return model.check_motion(positions, duration, speed)
+    return model.check_motion(positions, duration, speed, refine)

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import coal
@@ -82,7 +82,8 @@ class MotionClearance:
     Attributes:
         min_clearance: the smallest distance between checked bodies over the whole motion, m, to
             within max(:data:`RESOLUTION`, :data:`CLEARANCE_TOLERANCE` of it) below it, never
-            above (inf when nothing is checked).
+            above (inf when nothing is checked); from ``check_motion(..., refine=False)``, the
+            smallest at the configurations checked, until :meth:`refined`.
         pair: the two bodies that have it.
         time: where, s; fraction: where, as the path parameter s.
         checks: configurations evaluated.
@@ -93,6 +94,11 @@ class MotionClearance:
     time: float
     fraction: float
     checks: int
+    _refine: Callable[[], MotionClearance] | None = field(default=None, repr=False, compare=False)
+
+    def refined(self) -> MotionClearance:
+        """This result with ``min_clearance`` over the whole motion (itself if it already is)."""
+        return self if self._refine is None else self._refine()
 
 
 class CollisionModel:
@@ -336,13 +342,15 @@ class CollisionModel:
             pair=pair, fraction=fraction, time=t, clearance=d)
 
     def check_motion(self, positions: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
-                     duration: float, joint_speed: np.ndarray) -> MotionClearance:
+                     duration: float, joint_speed: np.ndarray, refine: bool = True) -> MotionClearance:
         """Check a whole motion, between its samples too (see the module's doc for the rule).
 
         Args:
             positions: times (M,) s -> (joint positions (M, dof), path parameter s (M,)).
             duration: the motion's duration, s.
             joint_speed: a bound on |dq/dt| over the motion, (dof,), rad/s or m/s.
+            refine: bound ``min_clearance`` over the whole motion now (False: later, by
+                :meth:`MotionClearance.refined`, e.g. after a trajectory is published).
         Returns:
             the smallest clearance found, with its pair and place.
         Raises:
@@ -394,8 +402,15 @@ class CollisionModel:
             p = int(np.argmin(D_all[n]))
             self._raise('path', self._pair_names[p], float(D_all[n, p]), float(s_all[n]), float(t_all[n]))
         order = np.argsort(t_all, kind='stable')
-        return self._min_clearance(positions, R, t_all[order], s_all[order], D_all[order],
-                                   np.concatenate(all_E)[order], np.concatenate(all_P)[order], checks)
+
+        def whole() -> MotionClearance:
+            return self._min_clearance(positions, R, t_all[order], s_all[order], D_all[order],
+                                       np.concatenate(all_E)[order], np.concatenate(all_P)[order], checks)
+        if refine:
+            return whole()
+        n_min, p_min = (int(i) for i in np.unravel_index(int(np.argmin(D_all)), D_all.shape))
+        return MotionClearance(float(D_all[n_min, p_min]), self._pair_names[p_min], float(t_all[n_min]),
+                               float(s_all[n_min]), checks, whole)
 
     def _min_clearance(self, positions: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], R: np.ndarray,
                        t: np.ndarray, s: np.ndarray, D: np.ndarray, E: np.ndarray, P: np.ndarray,

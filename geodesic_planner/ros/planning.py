@@ -41,6 +41,7 @@ from ..core.errors import (BVPError, FrameError, GeodesicPlannerError, IKError, 
                            RequestError, SingularMetricError, StartInCollisionError, StartStateError,
                            TrajectoryError)
 from ..core.branches import first_clear, start_branches
+from ..core.collision import MotionClearance
 from ..core.kinematics import Chain
 from ..core.path import JointPath
 from ..core.robots import is_urdf_path
@@ -515,7 +516,7 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
         return path, trajectory
 
     pose_start = request.start is not None and request.start_joints is None
-    clearance = math.nan
+    found: MotionClearance | None = None
     if config.collision is None:
         path, trajectory = attempt(None)
         branch = 'default' if pose_start else ''
@@ -525,10 +526,10 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
         def branches(first: JointPath) -> list[np.ndarray]:
             assert T_start is not None
             return start_branches(config.planner, T_start, first.q_start, request.tolerance)
+        # min_clearance over the whole motion is bounded after the trajectory is published
         path, trajectory, found, branch = first_clear(attempt, config.collision,
-                                                      branches if pose_start else None)
+                                                      branches if pose_start else None, refine=False)
         branch = branch if pose_start else ''
-        clearance = found.min_clearance
     t1 = time.perf_counter()
     collision_ms = (t1 - t0 - spent['plan'] - spent['timing']) * 1e3
     points = int(trajectory.duration / config.sample_period) + 2
@@ -548,18 +549,20 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
     if on_trajectory is not None and not on_trajectory(msg):
         raise PlanAbandonedError
     t4 = time.perf_counter()
+    clearance = math.nan if found is None else found.refined().min_clearance
+    t5 = time.perf_counter()
     poses = np.concatenate([_fk(config.robot, q[i:i + cv.CHECK_EVERY])
                             for i in range(0, len(q), cv.CHECK_EVERY)])
     path_msg = cv.poses_to_path(poses, config.frame_id, stamp)
     markers = cv.path_markers(poses, config.frame_id)
     path_error = path.line_deviation()
     deviation = blend_deviation(request, path)
-    t5 = time.perf_counter()
+    t6 = time.perf_counter()
     solver = path.solver
     stages = {'plan': spent['plan'] * 1e3, 'timing': (spent['timing'] + t2 - t1) * 1e3,
               'collision': collision_ms,
               'trajectory': (t3 - t2) * 1e3, 'publish': (t4 - t3) * 1e3,
-              'tool path': (t5 - t4) * 1e3}
+              'clearance': (t5 - t4) * 1e3, 'tool path': (t6 - t5) * 1e3}
     return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
                       int(solver.iterations), float(solver.time_ms), stages,
                       solver.method, int(solver.mesh_size), path_error, clearance, branch, deviation)
