@@ -245,28 +245,36 @@ class BlendedPath(JointPath):
         """Joint positions at s = 1."""
         return self.stopping_path.q_goal
 
-    def _natural(self, i: int, u: np.ndarray, order: int) -> list[np.ndarray]:
-        """Piece i at u with derivatives w.r.t. the blended path's s (natural rate)."""
+    def _natural(self, i: int, u: np.ndarray, order: int, interpolated: bool = False) -> list[np.ndarray]:
+        """Piece i at u with derivatives w.r.t. the blended path's s (natural rate); from the
+        piece's interpolant (order 3) when ``interpolated``."""
         scale = self.length / self._lengths[i]
-        return [arr * scale**m for m, arr in
-                enumerate(self.stopping_path.pieces[i].evaluate(np.clip(u, 0.0, 1.0), order))]
+        piece = self.stopping_path.pieces[i]
+        u = np.clip(u, 0.0, 1.0)
+        values = piece.interpolate(u) if interpolated else piece.evaluate(u, order)
+        return [arr * scale**m for m, arr in enumerate(values)]
 
     def evaluate(self, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
         """q and its first three derivatives w.r.t. s at s (1-D in [0, 1]); each (len(s), dof).
 
         ``order`` < 3 returns only the first ``order + 1`` arrays.
         """
-        s = check_s(s)
-        order = check_order(order)
+        return self._blend(check_s(s), check_order(order), interpolated=False)
+
+    def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, ...]:
+        """:meth:`evaluate` through the pieces' interpolants (see :meth:`JointPath.interpolate`)."""
+        return self._blend(check_s(s), 3, interpolated=True)
+
+    def _blend(self, s: np.ndarray, order: int, interpolated: bool) -> tuple[np.ndarray, ...]:
         out = [np.empty((s.size, self.dof)) for _ in range(order + 1)]
         for j, sel, x in by_segment(self._edges, s):
             g = self._segs[j]
             if g.kind == 'piece':
-                vals = self._natural(g.i, g.u0 + x * (g.u1 - g.u0), order)
+                vals = self._natural(g.i, g.u0 + x * (g.u1 - g.u0), order, interpolated)
             else:
                 k, ell = g.i, g.length
-                q_in = self._natural(k - 1, 1.0 - (1.0 - x) * ell / self._lengths[k - 1], order)
-                q_out = self._natural(k, x * ell / self._lengths[k], order)
+                q_in = self._natural(k - 1, 1.0 - (1.0 - x) * ell / self._lengths[k - 1], order, interpolated)
+                q_out = self._natural(k, x * ell / self._lengths[k], order, interpolated)
                 rate = self.length / ell                      # dτ/ds
                 w = [d * rate**m for m, d in enumerate(smoothstep(x))]
                 diff = [b - a for a, b in zip(q_in, q_out)]

@@ -302,8 +302,8 @@ class _Checker:
             return s, sd, sdd, sddd, rv_t, ra_t, rj_t, need
 
         cols = ratios(t)
-        # Around the highest peaks, samples at a quarter of the uniform spacing.
-        extra = peak_samples(t, cols[-1], law.duration / (m - 1), law.duration)
+        # Around the highest peaks, samples at a quarter of the uniform spacing (full grid only).
+        extra = peak_samples(t, cols[-1], law.duration / (m - 1), law.duration) if full else np.zeros(0)
         if extra.size:
             order = np.argsort(np.concatenate([t, extra]), kind='stable')
             t = np.concatenate([t, extra])[order]
