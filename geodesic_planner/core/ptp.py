@@ -1,0 +1,198 @@
+"""PTP: joint-space motions for free space, as geodesics of two metrics (docs/maths.md, "PTP").
+
+- ``joint_line``: the Euclidean metric on the joints; its geodesic is the straight line
+  ``q(s) = q_a + s (q_b - q_a)`` (Pilz PTP's path).
+- ``kinetic_energy``: the mass-matrix metric ``<u, v> = u^T M(q) v`` of the URDF's ``<inertial>``
+  elements; its geodesic ``M q'' + C(q, q') q' = 0`` (C: Coriolis and centrifugal terms, gravity
+  left out) is the motion of least kinetic energy between the two configurations (the paper's
+  "minimum kinetic energy" paths, Introduction and section 2). It is solved as a two-point BVP with
+  scipy's solve_bvp from the joint line; M and C q' come from pinocchio (``crba``, ``rnea`` with
+  zero gravity and zero acceleration).
+
+:func:`action` gives a path's integral of ``q'^T M(q) q'`` over s in [0, 1] (twice its kinetic
+energy integral at unit duration): constant along the kinetic-energy geodesic, and at least as
+large on any other path between the same ends (near them: the geodesic is the local minimiser).
+"""
+from __future__ import annotations
+
+import time
+from typing import Protocol
+
+import numpy as np
+from scipy.integrate import solve_bvp
+
+from .errors import BVPError, RequestError
+from .kinematics import Chain
+from .path import JointPath, check_order, check_s
+from .polynomials import QuinticHermite
+
+__all__ = ['PTP_OPTIONS', 'ConstantMass', 'JointLinePath', 'KineticEnergyPath', 'MassModel', 'UrdfMass',
+           'action', 'kinetic_energy_path']
+
+#: The ``ptp`` options: the geodesic's metric.
+PTP_OPTIONS = ('kinetic_energy', 'joint_line')
+#: solve_bvp's tolerance and mesh limit for the kinetic-energy geodesic.
+BVP_TOL = 1e-6
+MAX_NODES = 2000
+#: Initial mesh of the BVP.
+INITIAL_NODES = 17
+
+
+class MassModel(Protocol):
+    """What the kinetic-energy metric needs: M(q) and the velocity terms C(q, v) v, chain order."""
+
+    def matrix(self, q: np.ndarray) -> np.ndarray:
+        """M(q): (dof,) -> (dof, dof), kg m^2 (kg for prismatic joints)."""
+        ...
+
+    def velocity_terms(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """C(q, v) v: (dof,), (dof,) -> (dof,)."""
+        ...
+
+
+class ConstantMass:
+    """A constant mass matrix (tests, and arms whose inertia does not depend on q)."""
+
+    def __init__(self, M: np.ndarray) -> None:
+        self.M = np.asarray(M, dtype=float)
+
+    def matrix(self, q: np.ndarray) -> np.ndarray:
+        return self.M
+
+    def velocity_terms(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return np.zeros_like(np.asarray(v, dtype=float))
+
+
+class UrdfMass:
+    """M(q) and C(q, v) v of a URDF's ``<inertial>`` elements, through pinocchio, for the joints of
+    ``robot`` (other joints of the URDF, e.g. gripper fingers, locked at their neutral value).
+
+    Raises:
+        RequestError: the URDF cannot be read, lacks one of the chain's joints, or a moving link of
+            the chain has no mass (its message says which: the kinetic-energy metric needs them).
+    """
+
+    def __init__(self, robot: Chain, urdf: str) -> None:
+        import pinocchio as pin
+
+        try:
+            full = pin.buildModelFromXML(urdf)
+        except (RuntimeError, ValueError) as err:
+            raise RequestError(f'kinetic_energy: the URDF cannot be read by pinocchio: {err}') from None
+        names = list(full.names)
+        missing = [n for n in robot.joint_names if n not in names]
+        if missing:
+            raise RequestError(f'kinetic_energy: the URDF has no joint {missing[0]!r}')
+        lock = [i for i, n in enumerate(names) if i > 0 and n not in robot.joint_names]
+        model = pin.buildReducedModel(full, lock, pin.neutral(full)) if lock else full
+        model.gravity.setZero()
+        ids = [model.getJointId(n) for n in robot.joint_names]
+        if any(model.joints[i].nq != 1 for i in ids):
+            raise RequestError('kinetic_energy: only revolute and prismatic joints (one coordinate each)')
+        massless = [model.names[i] for i in ids if model.inertias[i].mass <= 0.0]
+        if massless:
+            raise RequestError(f'kinetic_energy: the link moved by joint {massless[0]!r} has no '
+                               '<inertial> mass in the URDF')
+        self._pin, self._model, self._data = pin, model, model.createData()
+        self._iq = np.array([model.joints[i].idx_q for i in ids])
+        self._iv = np.array([model.joints[i].idx_v for i in ids])
+        self._q0 = pin.neutral(model)
+
+    def _q(self, q: np.ndarray) -> np.ndarray:
+        full = self._q0.copy()
+        full[self._iq] = q
+        return full
+
+    def matrix(self, q: np.ndarray) -> np.ndarray:
+        M = self._pin.crba(self._model, self._data, self._q(q))
+        M = np.triu(M) + np.triu(M, 1).T
+        return M[np.ix_(self._iv, self._iv)]
+
+    def velocity_terms(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        nv = self._model.nv
+        vf, zero = np.zeros(nv), np.zeros(nv)
+        vf[self._iv] = v
+        return np.asarray(self._pin.rnea(self._model, self._data, self._q(q), vf, zero))[self._iv]
+
+
+class JointLinePath(JointPath):
+    """The straight line in joint space between q_a and q_b (dof,)."""
+
+    def __init__(self, robot: Chain, q_a: np.ndarray, q_b: np.ndarray) -> None:
+        self.robot = robot
+        self._q_a = robot.check_joints(q_a, 'start joints')
+        self._dq = robot.check_joints(q_b, 'goal joints') - self._q_a
+
+    def evaluate(self, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
+        s = check_s(s)
+        order = check_order(order)
+        q = self._q_a + s[:, None] * self._dq
+        rest = [np.broadcast_to(self._dq, q.shape).copy(), np.zeros_like(q), np.zeros_like(q)]
+        return tuple([q] + rest[:order])
+
+
+class KineticEnergyPath(JointPath):
+    """The kinetic-energy geodesic: a quintic Hermite spline through the BVP's mesh (q, q' and the
+    geodesic's q'' at the nodes).
+
+    Attributes:
+        s_nodes, q_nodes, v_nodes, a_nodes: the mesh. solve_ms: the solver's time.
+    """
+
+    def __init__(self, robot: Chain, s: np.ndarray, q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                 solve_ms: float) -> None:
+        self.robot = robot
+        self.s_nodes, self.q_nodes, self.v_nodes, self.a_nodes = s, q, v, a
+        self.solve_ms = solve_ms
+        self._spline = QuinticHermite(s, q, v, a)
+
+    def evaluate(self, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
+        return tuple(self._spline(check_s(s), order=check_order(order)))
+
+
+def _acceleration(mass: MassModel, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """q'' = -M(q)^-1 C(q, q') q' at each column of q, v (dof, m)."""
+    return np.stack([-np.linalg.solve(mass.matrix(q[:, k]), mass.velocity_terms(q[:, k], v[:, k]))
+                     for k in range(q.shape[1])], axis=1)
+
+
+def kinetic_energy_path(robot: Chain, mass: MassModel, q_a: np.ndarray, q_b: np.ndarray) -> KineticEnergyPath:
+    """The geodesic of the mass-matrix metric from q_a to q_b (dof,), from the joint line.
+
+    Raises:
+        BVPError: solve_bvp does not converge (its message).
+    """
+    q_a = robot.check_joints(q_a, 'start joints')
+    q_b = robot.check_joints(q_b, 'goal joints')
+    n = robot.dof
+    s = np.linspace(0.0, 1.0, INITIAL_NODES)
+    y0 = np.concatenate([(q_a + s[:, None] * (q_b - q_a)).T, np.repeat((q_b - q_a)[:, None], s.size, axis=1)])
+
+    def fun(_s: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.concatenate([y[n:], _acceleration(mass, y[:n], y[n:])])
+
+    def bc(ya: np.ndarray, yb: np.ndarray) -> np.ndarray:
+        return np.concatenate([ya[:n] - q_a, yb[:n] - q_b])
+
+    t0 = time.perf_counter()
+    if np.allclose(q_a, q_b, rtol=0.0, atol=1e-12):
+        sol_s, y = s, y0
+    else:
+        sol = solve_bvp(fun, bc, s, y0, tol=BVP_TOL, max_nodes=MAX_NODES)
+        if not sol.success:
+            raise BVPError(f'kinetic_energy: the geodesic between the two configurations did not converge '
+                           f'({sol.message})')
+        sol_s, y = sol.x, sol.y
+    ms = (time.perf_counter() - t0) * 1e3
+    q, v = y[:n], y[n:]
+    return KineticEnergyPath(robot, sol_s, q.T, v.T, _acceleration(mass, q, v).T, ms)
+
+
+def action(path: JointPath, mass: MassModel, samples: int = 2001) -> float:
+    """``int_0^1 q'^T M(q) q' ds`` of ``path`` (Simpson's rule on ``samples`` (odd) values of s)."""
+    k = int(samples) | 1
+    s = np.linspace(0.0, 1.0, k)
+    q, v = path.evaluate(s, 1)
+    f = np.array([vk @ mass.matrix(qk) @ vk for qk, vk in zip(q, v)])
+    h = 1.0 / (k - 1)
+    return float(h / 3.0 * (f[0] + f[-1] + 4.0 * f[1:-1:2].sum() + 2.0 * f[2:-1:2].sum()))
