@@ -78,5 +78,5 @@ def test_a_link_without_mass_is_named(ur5) -> None:
     start = text.index('<link name="wrist_3_link">')
     end = text.index('</link>', start)
     link = re.sub(r'<mass value="[^"]*"', '<mass value="0"', text[start:end])
-    with pytest.raises(RequestError, match="wrist_3_joint.*no <inertial> mass"):
+    with pytest.raises(RequestError, match=r"wrist_3_joint.*no <inertial> mass"):
         UrdfMass(ur5, text[:start] + link + text[end:])
