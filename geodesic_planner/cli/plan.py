@@ -35,6 +35,9 @@ def path_to_dict(path: JointPath, samples: int) -> dict[str, object]:
         'solver': solver,
         'length': float(getattr(path, 'length', float('nan'))),
     }
+    notes = getattr(path, 'notes', None)
+    if notes:                  # a sequence: what was planned otherwise than asked
+        out['notes'] = list(notes)
     zones = getattr(path, 'zones', None)
     if zones is not None:      # a blended via sequence: what each blend did to the tool
         out['blend_zones'] = [dataclasses.asdict(z) for z in zones]

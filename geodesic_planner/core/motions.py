@@ -86,7 +86,7 @@ def _finish(path: JointPath, planner: GeodesicPlanner, method: str, t0: float) -
     path.metric = planner.metric  # type: ignore[attr-defined]
     nodes = getattr(path, 's_nodes', s)
     path.solver = SolverReport(0, method, 0, 0.0, int(nodes.size),  # type: ignore[attr-defined]
-                               (time.perf_counter() - t0) * 1e3, 0.0, method, float('nan'))
+                               (time.perf_counter() - t0) * 1e3, 0.0, method, 0.0)
     return path
 
 

@@ -27,7 +27,7 @@ from .path import JointPath, check_order, check_s
 from .polynomials import QuinticHermite
 
 __all__ = ['PTP_OPTIONS', 'ConstantMass', 'JointLinePath', 'KineticEnergyPath', 'MassModel', 'UrdfMass',
-           'action', 'kinetic_energy_path']
+           'action', 'kinetic_energy_path', 'mass_from_urdf']
 
 #: The ``ptp`` options: the geodesic's metric.
 PTP_OPTIONS = ('kinetic_energy', 'joint_line')
@@ -196,3 +196,14 @@ def action(path: JointPath, mass: MassModel, samples: int = 2001) -> float:
     f = np.array([vk @ mass.matrix(qk) @ vk for qk, vk in zip(q, v)])
     h = 1.0 / (k - 1)
     return float(h / 3.0 * (f[0] + f[-1] + 4.0 * f[1:-1:2].sum() + 2.0 * f[2:-1:2].sum()))
+
+
+def mass_from_urdf(robot: Chain, urdf: str | None) -> tuple[UrdfMass | None, str]:
+    """The URDF's mass model for ``robot``, or (None, why not): no URDF (a DH preset), or a link
+    without ``<inertial>`` mass; PTP ``kinetic_energy`` then plans the joint line and says so."""
+    if not urdf:
+        return None, f'robot {robot.name!r} has no URDF (no <inertial> elements)'
+    try:
+        return UrdfMass(robot, urdf), ''
+    except RequestError as err:
+        return None, str(err)

@@ -10,6 +10,14 @@
     blend_radius: 0.02          # optional, m: pass each via pose within this distance without stopping
     tolerance: 0.001            # optional: allowed distance to the nearest reachable pose
     method: auto                # optional: auto (pull-back where it applies) | collocation (IK at the ends only)
+
+Or, instead of goal/via, a sequence of motions (LIN, CIRC, PTP; core/motions.py), each from where
+the previous one ended, blended at its goal within its own ``blend_radius`` (the last one 0)::
+
+    sequence:
+      - {motion: LIN, goal: {...}, blend_radius: 0.03}
+      - {motion: CIRC, goal: {...}, center: [x, y, z], blend_radius: 0.03}    # or interim: [x, y, z]
+      - {motion: PTP, goal_joints: [...], ptp: kinetic_energy}                # or joint_line; or a goal
 """
 from __future__ import annotations
 
@@ -23,7 +31,9 @@ import yaml
 
 from ..core.errors import RequestError
 from ..core.kinematics import Chain
+from ..core.motions import MotionItem, plan_sequence
 from ..core.planner import GeodesicPlanner, check_method
+from ..core.ptp import MassModel, mass_from_urdf
 from ..core.robots import load_robot
 from ..core.transforms import pose_from_mapping
 
@@ -34,7 +44,9 @@ if TYPE_CHECKING:
 
 KNOWN_KEYS = {'robot', 'metric', 'position_weight', 'orientation_weight', 'epsilon', 'start', 'goal',
               'start_joints', 'goal_joints', 'via', 'tolerance', 'base_link', 'tip_link', 'description',
-              'method', 'blend_radius'}
+              'method', 'blend_radius', 'sequence'}
+#: Keys of a sequence item.
+ITEM_KEYS = {'motion', 'goal', 'goal_joints', 'interim', 'center', 'ptp', 'blend_radius'}
 
 
 @dataclass
@@ -51,6 +63,8 @@ class PlanRequest:
     planner_options: dict[str, Any] = field(default_factory=dict)
     method: str = 'auto'
     blend_radius: float = 0.0
+    items: list[MotionItem] = field(default_factory=list)
+    mass: MassModel | None = None
 
     def planner(self) -> GeodesicPlanner:
         """A planner for this request's robot and metric options."""
@@ -65,6 +79,10 @@ class PlanRequest:
         ``start_seed`` (dof,) seeds the start pose's IK (e.g. the robot's current joint state).
         """
         planner = planner or self.planner()
+        if self.items:
+            return plan_sequence(planner, self.items, start=self.start,  # type: ignore[return-value]
+                                 start_joints=self.start_joints, tolerance=self.tolerance,
+                                 start_seed=start_seed, mass=self.mass)
         if self.via:
             if self.goal is None:
                 raise RequestError('via points need a goal pose (goal_joints cannot end a via sequence)')
@@ -123,9 +141,60 @@ def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
                       blend)
     if req.start is None and req.start_joints is None:
         raise RequestError('request: give start (a Pose) or start_joints')
-    if req.goal is None and req.goal_joints is None:
+    if data.get('sequence') is not None:
+        if req.goal is not None or req.goal_joints is not None or req.via:
+            raise RequestError('request: a sequence replaces goal, goal_joints and via (give one or the other)')
+        req.items = parse_items(data['sequence'], robot)
+        if any(it.motion == 'PTP' and it.ptp == 'kinetic_energy' for it in req.items):
+            urdf = None
+            if robot_ref.endswith('.urdf'):
+                with open(robot_ref, encoding='utf-8') as fh:
+                    urdf = fh.read()
+            req.mass = mass_from_urdf(robot, urdf)[0]
+    elif req.goal is None and req.goal_joints is None:
         raise RequestError('request: give goal (a Pose) or goal_joints')
     return req
+
+
+def _point(value: object, what: str) -> np.ndarray:
+    """A point from [x, y, z] or {x: .., y: .., z: ..}, m."""
+    if isinstance(value, Mapping):
+        value = [value.get(k) for k in ('x', 'y', 'z')]
+    try:
+        out = np.asarray(value, dtype=float).reshape(3)
+    except (TypeError, ValueError) as err:
+        raise RequestError(f'request: {what} must be [x, y, z] or {{x, y, z}}, got {value!r}') from err
+    if not np.all(np.isfinite(out)):
+        raise RequestError(f'request: {what} must be finite, got {value!r}')
+    return out
+
+
+def parse_items(raw: object, robot: Chain) -> list[MotionItem]:
+    """The motions of a request's ``sequence`` (see the module's doc).
+
+    Raises:
+        RequestError: not a list of mappings, an unknown key, a bad value (naming the item).
+    """
+    if not isinstance(raw, list) or not raw:
+        raise RequestError('request: sequence must be a non-empty list of motions')
+    items = []
+    for i, entry in enumerate(raw):
+        what = f'sequence[{i}]'
+        if not isinstance(entry, Mapping):
+            raise RequestError(f'request: {what} must be a mapping, got {type(entry).__name__}')
+        unknown = sorted(set(entry) - ITEM_KEYS)
+        if unknown:
+            raise RequestError(f'request: {what}: unknown keys {unknown}; known keys are {sorted(ITEM_KEYS)}')
+        goal = None if entry.get('goal') is None else pose_from_mapping(entry['goal'], f'{what}.goal')
+        joints = None if entry.get('goal_joints') is None else robot.check_joints(entry['goal_joints'],
+                                                                                  f'{what}.goal_joints')
+        items.append(MotionItem(
+            str(entry.get('motion', '')).upper(), goal, joints,
+            None if entry.get('interim') is None else _point(entry['interim'], f'{what}.interim'),
+            None if entry.get('center') is None else _point(entry['center'], f'{what}.center'),
+            str(entry.get('ptp', 'kinetic_energy')),
+            0.0 if entry.get('blend_radius') is None else _number(entry['blend_radius'], f'{what}.blend_radius')))
+    return items
 
 
 def _number(value: object, what: str) -> float:
