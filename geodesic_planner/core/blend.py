@@ -293,9 +293,7 @@ class BlendedPath(JointPath):
             if g.kind != 'piece':
                 continue
             u = np.linspace(g.u0, g.u1, int(samples))
-            p = self.robot.fk(self.stopping_path.pieces[g.i].evaluate(u, 0)[0])[:, :3, 3]
-            d = segment_distance(p, self._ends[g.i][:3, 3], self._ends[g.i + 1][:3, 3])
-            worst = max(worst, float(d.max()))
+            worst = max(worst, float(self.stopping_path.pieces[g.i].deviation(u).max()))
         return worst
 
     def exact_intervals(self) -> list[tuple[float, float]]:

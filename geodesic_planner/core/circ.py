@@ -184,6 +184,11 @@ class ArcPath(JointPath):
         """The task poses (N, 4, 4) on the arc and the slerp at s."""
         return _targets(self.arc, self.R_a, self.w_body, np.asarray(s, dtype=float))
 
+    def deviation(self, s: np.ndarray) -> np.ndarray:
+        """Distance (m) of the tool from the arc's point at the same s (N,)."""
+        s = check_s(s)
+        return np.linalg.norm(self.ee_poses(s)[:, :3, 3] - self.arc.derivatives(s)[0], axis=1)
+
     def arc_deviation(self, samples: int = 2001) -> float:
         """Largest distance (m) of the tool from the arc's point at the same s, on ``samples``
         uniform values of s."""

@@ -177,6 +177,7 @@ def plan_sequence(planner: GeodesicPlanner, items: Sequence[MotionItem], *, star
             piece = plan_item(planner, item, q, mass, tolerance)
         except GeodesicPlannerError as err:
             err.args = (f'sequence item {i} ({item.motion}): {err.args[0] if err.args else err}',) + err.args[1:]
+            err.item = i          # type: ignore[attr-defined]   # the service's failed_item
             raise
         pieces.append(piece)
         q = piece.q_goal

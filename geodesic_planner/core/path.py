@@ -103,11 +103,16 @@ class JointPath(ABC):
         """Tool poses (len(s), 4, 4) along the path, base frame."""
         return self.robot.fk(self.evaluate(check_s(s), 0)[0])
 
+    def deviation(self, s: np.ndarray) -> np.ndarray:
+        """Distance (m) of the tool from the path's own geometry at s (N,): here the straight
+        segment between the path's end positions (LIN); an arc's circle, nothing for PTP."""
+        ends = self.ee_poses(np.array([0.0, 1.0]))[:, :3, 3]
+        return segment_distance(self.ee_poses(s)[:, :3, 3], ends[0], ends[1])
+
     def line_deviation(self, samples: int = 101) -> float:
-        """Largest distance (m) of the tool position from the straight segment between the path's
-        end positions, on ``samples`` uniform values of s (piecewise paths: per piece)."""
-        T = self.ee_poses(np.linspace(0.0, 1.0, int(samples)))
-        return float(segment_distance(T[:, :3, 3], T[0, :3, 3], T[-1, :3, 3]).max())
+        """Largest :meth:`deviation` (m) on ``samples`` uniform values of s (piecewise paths:
+        per piece): for a LIN, the distance from the straight segment."""
+        return float(self.deviation(np.linspace(0.0, 1.0, int(samples))).max())
 
     def timed(self, max_velocity: npt.ArrayLike | None = None, max_acceleration: npt.ArrayLike | None = None,
               duration: float | None = None, *, max_tool_speed: float | None = None,

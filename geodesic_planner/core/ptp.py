@@ -123,6 +123,10 @@ class JointLinePath(JointPath):
         self._q_a = robot.check_joints(q_a, 'start joints')
         self._dq = robot.check_joints(q_b, 'goal joints') - self._q_a
 
+    def deviation(self, s: np.ndarray) -> np.ndarray:
+        """Zeros: a PTP has no tool geometry to keep."""
+        return np.zeros(check_s(s).size)
+
     def evaluate(self, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
         s = check_s(s)
         order = check_order(order)
@@ -148,6 +152,10 @@ class KineticEnergyPath(JointPath):
 
     def evaluate(self, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
         return tuple(self._spline(check_s(s), order=check_order(order)))
+
+    def deviation(self, s: np.ndarray) -> np.ndarray:
+        """Zeros: a PTP has no tool geometry to keep."""
+        return np.zeros(check_s(s).size)
 
 
 def _acceleration(mass: MassModel, q: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -11,21 +11,20 @@ Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default)
   joint limit or an unreachable pose stops the line, the fraction up to it, named in the reason).
   Plan-only unless ``execute`` is true. With a joint state known, an explicit start is solved
   seeded from it and refused (START_STATE_MISMATCH) beyond ``allowed_start_tolerance``.
+* service ``~/plan_sequence`` (PlanSequence): LIN, CIRC and PTP items with blends, one
+  trajectory (:mod:`~geodesic_planner.ros.sequence_service`).
 * service ``~/plan`` (nav_msgs/srv/GetPlan, compatibility; every success is published, no
-  start-state check): start/goal in the base frame; a start with an empty frame_id and an all-zero
-  quaternion means the current joint state; ``tolerance`` (m, 0: the default) is the allowed
-  distance to the nearest reachable pose. ``plan``: the tool poses at the sample times.
+  start-state check): start/goal in the base frame (an empty frame_id and an all-zero quaternion:
+  the current joint state); ``tolerance`` (m, 0: the default) is the allowed distance to the
+  nearest reachable pose. ``plan``: the tool poses at the sample times.
 * topic ``~/joint_trajectory`` (trajectory_msgs/JointTrajectory), reliable, volatile, depth 10:
   one message per successful plan, published as soon as it is validated (before the tool path
-  is built and before the service answers), after at most 1 s for subscriptions that the graph
-  shows but that have not matched yet (a client that subscribes just before calling). Volatile on purpose: a
-  controller that connects later must not execute an old plan (transient_local would replay it).
+  and the reply), after at most 1 s for subscriptions the graph shows but that have not matched
+  yet. Volatile on purpose: a controller that connects later must not execute an old plan.
 * topic ``~/path_markers`` (visualization_msgs/MarkerArray), reliable, transient_local, depth 1:
   the tool path line strip and start/goal axes of the latest plan (RViz started later sees it).
-* collisions: every plan is checked against the robot's own links and the scene (parameters
-  ``collision_check``, ``collision_padding``, ``srdf``, ``package_dirs``, ``scene``); the reply
-  gives ``min_clearance`` and ``ik_branch``; services and markers of the scene:
-  :mod:`~geodesic_planner.ros.scene_services`.
+* collisions: every plan is checked against the robot's own links and the scene; the reply gives
+  ``min_clearance`` and ``ik_branch``; the scene: :mod:`~geodesic_planner.ros.scene_services`.
 * subscription ``/robot_description`` (std_msgs/String, reliable, transient local): the URDF
   used while the ``robot`` parameter is empty (until it arrives, plans fail with PLANNING_FAILED
   saying so).
@@ -40,8 +39,7 @@ against the schema, then together in the on-set callback, which builds a new
 nothing changes on rejection. ``robot``/``robot_description``/``base_link``/``tip_link`` may change
 at run time (the model is reloaded); to change the robot and ``joint_names`` together use
 ``set_parameters_atomically`` (the per-parameter service checks each change against the others'
-current values). Invalid values at start: one ``cannot start: ...``
-error line and exit code 1.
+current values). Invalid values at start: one ``cannot start: ...`` error line and exit code 1.
 
 Timing and the pipeline (parameters -> configuration, request -> messages):
 :mod:`geodesic_planner.ros.planning`.
@@ -110,6 +108,7 @@ from .diagnostics import NodeStatus
 from .matching import matched_logger, wait_for_matched_subscriptions
 from .params import PLANNER_PARAMETERS
 from .scene_services import SceneServices
+from .sequence_service import SequenceService
 from .planning import (CODE_NAMES, ConfigError, PlannerConfig, PlanResult, PlanTimeoutError,
                        build_config, compute_plan, error_code, get_plan_request,
                        plan_trajectory_request)
@@ -129,12 +128,14 @@ class Outcome:
     result: PlanResult | None = None
     published: bool = False
     fraction: float = -1.0
+    item: int = -1      # a sequence's failing item
 
     @classmethod
     def failure(cls, err: GeodesicPlannerError) -> Outcome:
         """The outcome of a library error: its code, its message and, for a line that cannot be
         followed, the followable fraction (``PathFollowError.fraction``)."""
-        return cls(error_code(err), str(err), fraction=float(getattr(err, 'fraction', -1.0)))
+        return cls(error_code(err), str(err), fraction=float(getattr(err, 'fraction', -1.0)),
+                   item=int(getattr(err, 'item', -1)))
 
 
 class GeodesicPlannerNode(Node):
@@ -206,6 +207,7 @@ class GeodesicPlannerNode(Node):
         self.plan_trajectory_srv = self.create_service(
             PlanTrajectory, '~/plan_trajectory', self._on_plan_trajectory,
             qos_profile=service_qos, callback_group=plans)
+        self.sequence = SequenceService(self, self._serve, service_qos, plans)
         # The URDF as robot_state_publisher publishes it (used while the robot parameter is empty).
         self.description_sub = self.create_subscription(
             String, self._description_topic, self._on_robot_description,
@@ -217,7 +219,7 @@ class GeodesicPlannerNode(Node):
             lambda: list(self.get_parameter('package_dirs').value or []),
             lambda: self._config.frame_id if self._config else 'base_link')
         self.scene.publish_markers()
-        services = ', '.join(self.resolve_service_name(n) for n in ('~/plan_trajectory', '~/plan'))
+        services = ', '.join(map(self.resolve_service_name, ('~/plan_trajectory', '~/plan_sequence', '~/plan')))
         c = self._config
         if c is None:
             self.get_logger().info(f'robot parameter empty: waiting for the URDF on '

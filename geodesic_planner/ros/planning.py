@@ -183,9 +183,12 @@ class PlanResult:
     min_clearance: float = math.nan
     #: the start's IK branch: 'default', 'k of n', or '' (start given as joints or the current state)
     ik_branch: str = ''
-    #: per via pose when the request asked for blends (blend_radius > 0), else empty: the largest
-    #: distance (m) of the tool from the stopping path inside its blend zone (0: passed with a stop)
+    #: per via pose when the request asked for blends (blend_radius > 0), or per sequence item but
+    #: the last, else empty: the largest distance (m) of the tool from the stopping path inside its
+    #: blend zone (0: passed with a stop)
     blend_deviation: tuple[float, ...] = ()
+    #: what was planned otherwise than asked (a sequence's PTP without inertias)
+    notes: tuple[str, ...] = ()
 
 
 def _limits(name: str, value: Sequence[float] | np.ndarray | None, default: np.ndarray, dof: int) -> np.ndarray:
@@ -565,7 +568,8 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
               'clearance': (t5 - t4) * 1e3, 'tool path': (t6 - t5) * 1e3}
     return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
                       int(solver.iterations), float(solver.time_ms), stages,
-                      solver.method, int(solver.mesh_size), path_error, clearance, branch, deviation)
+                      solver.method, int(solver.mesh_size), path_error, clearance, branch, deviation,
+                      tuple(getattr(path, 'notes', ())))
 
 
 def _fk(robot: Chain, q: np.ndarray) -> np.ndarray:
@@ -578,9 +582,12 @@ def blend_deviation(request: PlanRequest, path: object) -> tuple[float, ...]:
     """Per via pose of ``request`` (in order): the blend zone's largest tool distance from the
     stopping path (m, ``BlendZone.deviation``), 0 where the motion stops; empty when the request
     asks for no blends (``blend_radius`` 0 or no via poses)."""
-    if not request.via or request.blend_radius <= 0.0:
+    if request.items:
+        deviation = [0.0] * (len(request.items) - 1)
+    elif not request.via or request.blend_radius <= 0.0:
         return ()
-    deviation = [0.0] * len(request.via)
+    else:
+        deviation = [0.0] * len(request.via)
     if isinstance(path, BlendedPath):
         for zone in path.zones:        # zone.via: index among [start, *via, goal]
             deviation[zone.via - 1] = float(zone.deviation)
