@@ -21,7 +21,8 @@ namespace). Steps:
    without stopping);
 7. collisions (:mod:`tools.demo_collision`): a box across the start -> goal line is refused with
    the pair named, moved aside (same service) and planned; then stop the planner;
-8. read both trajectories back from the bag (:func:`geodesic_planner.io.bags.read_trajectories`),
+8. the motion types (:mod:`tools.motions`, library only): ``DIR/sequence.png`` and ``DIR/ptp.png``;
+9. read both trajectories back from the bag (:func:`geodesic_planner.io.bags.read_trajectories`),
    print a summary and write ``DIR/summary.json``, ``DIR/trajectory.png`` and
    ``DIR/via_blend.png`` (tool path and tool speed of both via plans) and ``DIR/collision.png``.
 
@@ -51,6 +52,7 @@ from geodesic_planner.core.errors import GeodesicPlannerError
 from geodesic_planner.core.kinematics import Chain
 from tools import netns
 from tools.demo_collision import collision_summary, run_collision_step, say_summary
+from tools.motions import motions_demo
 from tools.process import NodeProcess, ToolError, popen_node, wait_until
 
 __all__ = ['DemoError', 'main', 'paper_poses', 'run_demo', 'segment_deviation',
@@ -239,7 +241,7 @@ def _prepare_output(out: Path) -> Path:
             raise DemoError(f'{bag} exists and is not a bag from an earlier run: remove it or '
                             'choose another --output')
         shutil.rmtree(bag) if bag.is_dir() else bag.unlink()
-    for old in ('summary.json', 'trajectory.png', 'via_blend.png', 'collision.png'):
+    for old in ('summary.json', 'trajectory.png', 'via_blend.png', 'collision.png', 'sequence.png', 'ptp.png'):
         (out / old).unlink(missing_ok=True)
     return bag
 
@@ -382,8 +384,10 @@ def run_demo(output: Path, robot_name: str = 'planar_3r', timeout: float = 60.0,
                      {r: joint_trajectory_to_arrays(reply.trajectory) for r, reply in via_plans.items()},
                      list(via_plans[radius].blend_deviation))
     collision = collision_summary(output, robot, start_T, goal_T, step, DEFAULT_PADDING)
+    say('motion types (library): LIN, CIRC, a blended LIN -> CIRC -> LIN sequence, PTP')
+    motions = motions_demo(output, say)
     return _summarise(bag_dir, output, robot, start_T, goal_T, latency_ms, {'via_blend': via,
-                      'collision': collision}, say)
+                      'collision': collision, 'motions': motions}, say)
 
 
 def _via_blend(output: Path, robot: Any, poses: list[np.ndarray], radius: float,  # noqa: ANN401

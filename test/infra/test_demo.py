@@ -164,6 +164,16 @@ def test_demo_end_to_end(tmp_path: Path) -> None:
     assert col['min_clearance_aside_samples_m'] >= planned['min_clearance_m'] - 1e-9
     assert re.search(r'collision: box across the line refused at [\d.]+ % of the way', result.stdout)
     assert (out / 'collision.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    # The motion types (library): each on its geometry, the blends save time, PTP of least energy.
+    motions = summary['motions']
+    assert motions['accuracy']['LIN']['deviation_m'] < 1e-8
+    assert motions['accuracy']['CIRC (200 deg through an interim point)']['deviation_m'] < 1e-8
+    seq = motions['sequence']
+    assert seq['blended']['duration_s'] < seq['stopping']['duration_s']
+    assert all(d <= 0.03 * (1 + 1e-9) for d in seq['blended']['zones_max_distance_m'])
+    assert motions['ptp']['kinetic_energy']['action'] <= motions['ptp']['joint_line']['action']
+    for name in ('sequence.png', 'ptp.png'):
+        assert (out / name).read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert (out / 'bag' / 'metadata.yaml').is_file()
     from geodesic_planner.io.bags import read_trajectories
     topics = sorted({r.topic for r in read_trajectories(out / 'bag')})
