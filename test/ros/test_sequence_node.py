@@ -7,6 +7,7 @@ circle it was built on (computed here), Pilz's radius rule's arithmetic.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path as FsPath
 from typing import Any
 
 import numpy as np
@@ -120,3 +121,30 @@ def test_a_bad_item_names_its_index_and_code(node) -> None:
     # an unreachable goal: the IK's code, the item named
     resp = ask(node, [item('LIN', T1), item('PTP', moved([3.0, 0.0, 0.0]), ptp='joint_line')])
     assert resp.error_code.val == PlanErrorCode.NO_IK_SOLUTION and resp.failed_item == 1, resp.message
+
+
+def test_ptp_of_least_kinetic_energy_on_a_urdf_with_inertias(helper: Any, tmp_path: Any) -> None:
+    """The UR5 of example-robot-data: kinetic_energy plans the mass-matrix geodesic (off the joint
+    line), without a note (its action against the joint line's: test/core/test_ptp.py)."""
+    urdf = FsPath(__file__).resolve().parents[1] / 'data' / 'real_arms' / 'example-robot-data' / 'ur5_robot.urdf'
+    ur5 = load_robot(str(urdf), tip_link='tool0')
+    p = Planner(helper, tmp_path, {'robot': str(urdf), 'tip_link': 'tool0', 'collision_check': False}, '/seq_ke')
+    try:
+        client = helper.create_client(PlanSequence, f'{p.name}/plan_sequence')
+        q_a = np.array([0.0, -1.0, 1.2, -1.5, -1.4, 0.2])
+        q_b = q_a + np.array([1.5, 0.6, -0.9, 0.5, 1.0, -1.0])
+        req = PlanSequence.Request(items=[MotionSequenceItem(motion='PTP', ptp='kinetic_energy')])
+        req.items[0].goal.pose.orientation.w = 0.0
+        req.items[0].goal_joints = joints(ur5.joint_names, q_b)
+        req.start.pose.orientation.w = 0.0
+        req.start_joints = joints(ur5.joint_names, q_a)
+        resp = call_service(client, req, DEADLINE, watch=p.watch)
+        assert resp.error_code.val == PlanErrorCode.SUCCESS, resp.message
+        assert resp.message == ''                                  # no fallback
+        q = np.array([pt.positions for pt in resp.trajectory.points])
+        np.testing.assert_allclose(q[[0, -1]], [q_a, q_b], atol=1e-9)
+        u = (q - q_a) @ (q_b - q_a) / ((q_b - q_a) @ (q_b - q_a))
+        off_line = np.linalg.norm(q - (q_a + u[:, None] * (q_b - q_a)), axis=1).max()
+        assert off_line > 0.05                                      # not the joint line
+    finally:
+        p.stop()
