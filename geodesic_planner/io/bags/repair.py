@@ -349,7 +349,9 @@ def _add_connection(writer: Writer, ch: _Recovered, store: Any) -> Connection | 
         ts = get_typestore(Stores.EMPTY)
         try:
             ts.register(get_types_from_msg(ch.msgdef, ch.msgtype))
-            kwargs = {'msgdef': ch.msgdef, 'rihs01': ch.digest or ts.hash_rihs01(ch.msgtype)}
+            # the hash of the definition itself: a recorded digest may be damaged (a flipped byte
+            # in one topic's copy makes the repaired bag's connections disagree)
+            kwargs = {'msgdef': ch.msgdef, 'rihs01': ts.hash_rihs01(ch.msgtype)}
         except Exception:  # noqa: BLE001 - a damaged definition makes the parser raise anything: unusable
             kwargs = {}
     if not kwargs:
