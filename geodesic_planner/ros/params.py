@@ -22,6 +22,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from ..io.bags import STORAGES
+from ..timing.resample import MAX_POINTS
 
 #: Robot used when neither ``robot`` nor ``robot_description`` is given: the paper's planar 3R arm.
 DEFAULT_ROBOT = 'planar_3r'
@@ -33,7 +34,7 @@ STRING, DOUBLE, DOUBLES, STRINGS = 'string', 'double', 'double array', 'string a
 INTEGER = 'integer'
 BOOL = 'bool'
 #: Default largest number of points of one processed trajectory (1000 s at 0.01 s).
-DEFAULT_MAX_OUTPUT_POINTS = 100_000
+DEFAULT_MAX_OUTPUT_POINTS = MAX_POINTS
 
 #: A check returns the problem with a value (without the parameter name), or None if it is fine.
 Check = Callable[[object], 'str | None']

@@ -48,13 +48,13 @@ from ..core.robots import is_urdf_path
 from ..io.collision_setup import collision_for_parameters
 from ..io.joint_limits import apply_joint_limits, load_joint_limits
 from ..io.requests import PlanRequest
+from ..timing.resample import MAX_POINTS, sample_count
 from ..timing.validate import trajectory_problems
 from . import conversions as cv
 from . import params
 from .params import PLANNER_PARAMETERS
 
 #: Largest number of points in a published trajectory (bounds memory and time per request).
-MAX_POINTS = 100_000
 #: Accepted range of orientation_weight / position_weight (m); measured to plan on every preset.
 WEIGHT_RATIO = (1e-3, 1e2)
 #: Largest number of via poses in one request.
@@ -535,10 +535,10 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
         branch = branch if pose_start else ''
     t1 = time.perf_counter()
     collision_ms = (t1 - t0 - spent['plan'] - spent['timing']) * 1e3
-    points = int(trajectory.duration / config.sample_period) + 2
+    points = sample_count(trajectory.duration, config.sample_period)
     if points > MAX_POINTS:
         raise PlanningFailedError(
-            f'the trajectory would have {points} points ({trajectory.duration:.3g} s every '
+            f'the trajectory would have {points:.0f} points ({trajectory.duration:.3g} s every '
             f'{config.sample_period:g} s), more than {MAX_POINTS}: increase sample_period or the '
             'scaling factors')
     t, q, dq, ddq = trajectory.sample(config.sample_period)

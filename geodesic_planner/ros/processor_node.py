@@ -96,7 +96,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from ..io.bags import JOINT_STATE, JOINT_TRAJECTORY, BagRecorder, make_typestore, new_bag_path, to_cdr
 from ..core.errors import BagError, GeodesicPlannerError, RequestError
-from ..timing.resample import process_trajectory
+from ..timing.resample import process_trajectory, sample_count
 from ..timing.validate import trajectory_problems
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory
 from . import params, runtime
@@ -431,8 +431,7 @@ class TrajectoryProcessorNode(Node):
         """Why the output would exceed max_output_points (None: it fits); nothing allocated."""
         limit = int(self.get_parameter('max_output_points').value)
         span = float(t[-1] - t[0]) / f  # s, slowed down (inf on overflow)
-        # the bound resample.sample_times enforces: floor(span / dt) + 2 samples (inf if dt is tiny)
-        points = span / dt + 2.0
+        points = sample_count(span, dt)       # what resample.sample_times will give (inf if dt is tiny)
         if not points <= limit:
             return (f'output too large: {span:.6g} s at sample_period {dt:g} s (velocity_scaling {f:g}) '
                     f'would be up to {points:.6g} points, max_output_points is {limit}')

@@ -33,11 +33,16 @@ from ..core.polynomials import evaluate_polynomials, quintic_coefficients
 
 #: Default upper bound on the number of output samples (protects nodes from absurd requests).
 MAX_SAMPLES = 1_000_000
+#: The nodes' cap on the points of one trajectory they publish (the planner's; the processor's
+#: ``max_output_points`` default).
+MAX_POINTS = 100_000
 
 __all__ = [
+    'MAX_POINTS',
     'MAX_SAMPLES',
     'process_trajectory',
     'resample',
+    'sample_count',
     'sample_times',
     'scale_velocity',
 ]
@@ -86,6 +91,15 @@ def _check_period(sample_period: float) -> float:
     return dt
 
 
+def sample_count(span: float, sample_period: float) -> float:
+    """The most samples :func:`sample_times` gives for ``span`` s at ``sample_period`` s:
+    ``floor(span / dt) + 2`` (a float: inf for an infinite span or a vanishing period); computed
+    before anything is allocated."""
+    with np.errstate(over='ignore', divide='ignore', invalid='ignore'):
+        ratio = float(np.float64(span) / np.float64(sample_period))
+    return math.floor(ratio * (1.0 + 1e-12)) + 2.0 if math.isfinite(ratio) else math.inf
+
+
 def sample_times(t_start: float, t_end: float, sample_period: float, *, max_samples: int = MAX_SAMPLES) -> np.ndarray:
     """Uniform sample times ``t_start + k * sample_period`` up to and including ``t_end``.
 
@@ -112,7 +126,7 @@ def sample_times(t_start: float, t_end: float, sample_period: float, *, max_samp
         msg = f'need finite t_start <= t_end, got {t_start!r}, {t_end!r}'
         raise RequestError(msg)
     span = t1 - t0
-    n_inner = math.floor(span / dt * (1.0 + 1e-12))  # grid points after t_start, before or at t_end
+    n_inner = int(sample_count(span, dt)) - 2     # grid points after t_start, before or at t_end
     if n_inner + 2 > max_samples:
         msg = (f'{span:.6g} s at a sample period of {dt:.6g} s would need {n_inner + 1} points '
                f'(limit {max_samples})')

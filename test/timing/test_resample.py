@@ -216,3 +216,17 @@ def test_bad_inputs_named():
         resample(np.array([]), np.zeros((0, 2)), None, None, 0.1)
     with pytest.raises(RequestError, match='limit'):
         resample(np.array([0.0, 1e6]), np.zeros((2, 1)), None, None, 1e-3)
+
+
+def test_sample_count_is_what_sample_times_gives_at_most() -> None:
+    """The one sample count (nodes check it before allocating): floor(span / dt) + 2, an upper
+    bound of len(sample_times) that is reached when the span is not a multiple of the period."""
+    from geodesic_planner.timing.resample import sample_count, sample_times
+
+    for span, dt in ((1.0, 0.01), (1.005, 0.01), (0.3, 0.1), (2.5, 0.7), (0.0, 0.01), (1e-3, 1.0)):
+        n = sample_count(span, dt)
+        got = len(sample_times(0.0, span, dt))
+        assert got <= n <= got + 1, (span, dt, got, n)
+    assert sample_count(1.005, 0.01) == 102 == len(sample_times(0.0, 1.005, 0.01))
+    assert sample_count(1.0, 1e-320) == float('inf')
+    assert sample_count(float('inf'), 0.01) == float('inf')
