@@ -9,7 +9,7 @@ a tool speed limit (half the tool's peak linear speed of the unlimited law) and 
 (half its peak angular speed); an older checkout without those arguments runs without
 ``--tool``. ``--jerk`` adds a table of jerk-limited timings (``max_jerk`` at 100 %, 30 % and
 10 % of the smooth law's peak jerk per joint): duration against the v/a time-optimal duration
-(``optimality_ratio``) and against the per-joint 7-segment lower bound (:mod:`.jerk_bound`), the
+(``optimality_ratio``) and against the per-joint 7-segment lower bound (test/timing/jerk_bound.py), the
 peak jerk / limit on a dense grid, and the time of ``path.timed(max_jerk=...)``. The paths are
 planned once; only the timing is measured. Nothing is asserted.
 """
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 import numpy as np
 
@@ -60,7 +61,8 @@ JERK_FACTORS = (1.0, 0.3, 0.1)
 
 def jerk_table(repeats: int) -> None:
     """Jerk-limited timing on every case: durations against the v/a optimum and the 7-segment bound."""
-    from geodesic_planner.timing.jerk_bound import rest_to_rest_lower_bound
+    sys.path.insert(0, os.path.join(ROOT, 'test', 'timing'))      # test tooling: the 7-segment bound
+    from jerk_bound import rest_to_rest_lower_bound
 
     print('\n| case | max_jerk | duration (s) | / v/a optimum | / 7-segment bound | peak jerk / limit '
           '| median ms |')

@@ -4,7 +4,7 @@ Jerks are computed independently of the law's own check: ``Trajectory.jerk_at_ti
 ``q' sdddot + 3 q'' sdot sddot + q''' sdot^3`` with the exact path derivatives on a dense time
 grid (the law checks on its own samples with interpolated derivatives). The duration is compared
 with two references computed apart from the law: the v/a time-optimal duration (``topp_duration``)
-and the per-joint 7-segment minimum time (:mod:`geodesic_planner.timing.jerk_bound`), itself
+and the per-joint 7-segment minimum time (test/timing/jerk_bound.py), itself
 checked against a linear program.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ from timing_paths import CornerPath, PolyPath, ZigZagPath, check_limits, curved
 
 from geodesic_planner.core.errors import LimitError
 from geodesic_planner.timing import JerkLimited, SmoothRestToRest, time_parameterize
-from geodesic_planner.timing.jerk_bound import min_rest_to_rest_time, rest_to_rest_lower_bound
+from jerk_bound import min_rest_to_rest_time, rest_to_rest_lower_bound
 from geodesic_planner.timing.smoothing import PiecewiseLaw
 
 #: Relative slack on "never above the limit": the law keeps its dense check within 0.1 % of every
