@@ -30,7 +30,8 @@ class Import:
         source: importing module, dotted (``geodesic_planner.core.planner``).
         target: imported module, dotted; for ``from X import name`` this is ``X`` or ``X.name``
             when ``X.name`` is itself a module of the package.
-        top_level: False when the import sits inside a function or class body (a deferred import).
+        top_level: False when the import sits inside a function or class body (a deferred import);
+            True at module level, ``if TYPE_CHECKING:`` blocks included.
         line: line number in the source file.
     """
 
@@ -66,6 +67,11 @@ def imports_of(path: Path, root: Path = ROOT, modules: set[str] | None = None) -
     source = module_name(path, root)
     tree = ast.parse(path.read_text(), filename=str(path))
     top = {id(node) for node in tree.body}
+    # ``if TYPE_CHECKING:`` imports at module level count as module-level imports: a type-only
+    # import that goes up a layer couples the layers as much as a real one
+    for node in tree.body:
+        if isinstance(node, ast.If) and 'TYPE_CHECKING' in ast.unparse(node.test):
+            top |= {id(child) for child in node.body}
     found: list[Import] = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):

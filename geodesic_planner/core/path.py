@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -16,9 +16,6 @@ from .errors import RequestError
 from .kinematics import Chain
 from .transforms import segment_distance
 
-if TYPE_CHECKING:
-    from ..timing.law import TimeLaw
-    from ..timing.trajectory import Trajectory
 
 
 def check_order(order: int) -> int:
@@ -116,8 +113,8 @@ class JointPath(ABC):
 
     def timed(self, max_velocity: npt.ArrayLike | None = None, max_acceleration: npt.ArrayLike | None = None,
               duration: float | None = None, *, max_tool_speed: float | None = None,
-              max_tool_angular_speed: float | None = None, law: TimeLaw | None = None,
-              max_jerk: npt.ArrayLike | None = None) -> Trajectory:
+              max_tool_angular_speed: float | None = None, law: Any = None,  # noqa: ANN401
+              max_jerk: npt.ArrayLike | None = None) -> Any:  # noqa: ANN401
         """Time parameterization under per-joint limits (see timing.parameterize).
 
         The one call from core up into the timing layer: a function-local import, so that core

@@ -86,3 +86,19 @@ def test_library_below_ros_imports_without_ros() -> None:
                             cwd=Path(ROOT))
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.split() == ['ok', '0']
+
+
+def test_type_only_imports_count_as_module_level(tmp_path: Path) -> None:
+    """An ``if TYPE_CHECKING:`` import is a module-level import for the layer rule (a type-only
+    import up a layer is flagged); a function-local one stays deferred."""
+    pkg = tmp_path / 'geodesic_planner' / 'core'
+    pkg.mkdir(parents=True)
+    (tmp_path / 'geodesic_planner' / '__init__.py').write_text('')
+    (pkg / '__init__.py').write_text('')
+    src = pkg / 'thing.py'
+    src.write_text('from typing import TYPE_CHECKING\n'
+                   'if TYPE_CHECKING:\n    from ..timing.law import TimeLaw\n'
+                   'def f():\n    from ..timing import parameterize\n')
+    found = {(imp.target, imp.top_level) for imp in imports_of(src, root=tmp_path, modules=set())}
+    assert ('geodesic_planner.timing.law', True) in found
+    assert ('geodesic_planner.timing', False) in found
