@@ -21,8 +21,9 @@ Interface (``~`` = ``/trajectory_processor`` by default):
 * the log says ``input TOPIC: N publisher(s) matched`` (also for other recorded topics) when a
   subscription matches publishers: a volatile reader receives only what is published after it
   has itself matched the writer (Fast DDS drops earlier samples even when the writer already saw
-  the reader), so scripts should wait for that line before the first plan; lost messages
-  reported by the rmw are logged as errors.
+  the reader); the same count is on ``/diagnostics`` (``input publishers matched``), which scripts
+  wait on before the first plan (logs are for people); lost messages reported by the rmw are
+  logged as errors.
 * an invalid input (what joint_trajectory_controller would reject: empty/duplicate joint names,
   no points, wrong sizes, non-finite values, non-increasing ``time_from_start``) is logged as an
   error naming the cause, recorded as received, and not published. The node keeps going.
