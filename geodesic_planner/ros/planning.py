@@ -36,10 +36,9 @@ from visualization_msgs.msg import MarkerArray
 from .. import GeodesicPlanner, load_robot
 from ..core.blend import BlendedPath
 from ..core.cancel import checkpoint
-from ..core.errors import (BVPError, FrameError, GeodesicPlannerError, IKError, KinematicsError,
-                           GoalInCollisionError, LimitError, PathFollowError, PathInCollisionError,
-                           RequestError, SingularMetricError, StartInCollisionError, StartStateError,
-                           TrajectoryError)
+from ..core.errors import (FrameError, GeodesicPlannerError, GoalInCollisionError, IKError, LimitError,
+                           LineLimitError, LineUnreachableError, PathFollowError, PathInCollisionError,
+                           RequestError, StartInCollisionError, StartStateError, TrajectoryError)
 from ..core.branches import first_clear, start_branches
 from ..core.collision import MotionClearance
 from ..core.kinematics import Chain
@@ -75,26 +74,26 @@ class PlanTimeoutError(GeodesicPlannerError):
     """The plan took longer than ``plan_timeout``."""
 
 
-#: Library error class -> PlanErrorCode value; the first class that matches wins (subclasses first).
-ERROR_CODES: tuple[tuple[type[BaseException], int], ...] = (
-    (FrameError, PlanErrorCode.FRAME_TRANSFORM_FAILURE),
-    (StartInCollisionError, PlanErrorCode.START_STATE_IN_COLLISION),
-    (GoalInCollisionError, PlanErrorCode.GOAL_IN_COLLISION),
-    (PathInCollisionError, PlanErrorCode.INVALID_MOTION_PLAN),
-    (StartStateError, PlanErrorCode.START_STATE_MISMATCH),
-    (TrajectoryError, PlanErrorCode.PLANNING_FAILED),      # the generated trajectory, not the request
-    (ConfigError, PlanErrorCode.PLANNING_FAILED),          # no usable model yet
-    (RequestError, PlanErrorCode.INVALID_REQUEST),
-    (IKError, PlanErrorCode.NO_IK_SOLUTION),
-    (LimitError, PlanErrorCode.JOINT_LIMITS_VIOLATED),      # a line past a joint limit too
-    (PathFollowError, PlanErrorCode.PLANNING_FAILED),       # a line through a singularity
-    (PlanTimeoutError, PlanErrorCode.TIMED_OUT),
-    (BVPError, PlanErrorCode.PLANNING_FAILED),
-    (SingularMetricError, PlanErrorCode.PLANNING_FAILED),
-    (KinematicsError, PlanErrorCode.PLANNING_FAILED),
-    (PlanningFailedError, PlanErrorCode.PLANNING_FAILED),
-    (GeodesicPlannerError, PlanErrorCode.PLANNING_FAILED),
-)
+#: Library error class -> PlanErrorCode value, one row per class; an error takes the code of the
+#: first class along its method resolution order that has a row (classes without one, e.g.
+#: BVPError, KinematicsError, CollisionError, take their base's).
+ERROR_CODES: dict[type[BaseException], int] = {
+    GeodesicPlannerError: PlanErrorCode.PLANNING_FAILED,
+    RequestError: PlanErrorCode.INVALID_REQUEST,
+    FrameError: PlanErrorCode.FRAME_TRANSFORM_FAILURE,
+    StartStateError: PlanErrorCode.START_STATE_MISMATCH,
+    TrajectoryError: PlanErrorCode.PLANNING_FAILED,        # the generated trajectory, not the request
+    ConfigError: PlanErrorCode.PLANNING_FAILED,            # no usable model yet
+    IKError: PlanErrorCode.NO_IK_SOLUTION,
+    LimitError: PlanErrorCode.JOINT_LIMITS_VIOLATED,
+    PathFollowError: PlanErrorCode.PLANNING_FAILED,        # a line through a singularity
+    LineLimitError: PlanErrorCode.JOINT_LIMITS_VIOLATED,   # a line past a joint limit
+    LineUnreachableError: PlanErrorCode.NO_IK_SOLUTION,    # a line out of reach
+    StartInCollisionError: PlanErrorCode.START_STATE_IN_COLLISION,
+    GoalInCollisionError: PlanErrorCode.GOAL_IN_COLLISION,
+    PathInCollisionError: PlanErrorCode.INVALID_MOTION_PLAN,
+    PlanTimeoutError: PlanErrorCode.TIMED_OUT,
+}
 
 #: PlanErrorCode value -> constant name (for logs and tests).
 CODE_NAMES: dict[int, str] = {
@@ -104,9 +103,9 @@ CODE_NAMES: dict[int, str] = {
 
 def error_code(err: BaseException) -> int:
     """The PlanErrorCode of an error raised while planning (PLANNING_FAILED for anything else)."""
-    for cls, code in ERROR_CODES:
-        if isinstance(err, cls):
-            return int(code)
+    for cls in type(err).__mro__:
+        if cls in ERROR_CODES:
+            return int(ERROR_CODES[cls])
     return int(PlanErrorCode.PLANNING_FAILED)
 
 
