@@ -34,6 +34,24 @@ class StartStateError(RequestError):
     """A plan's first point is not where the robot is (beyond the allowed start tolerance)."""
 
 
+class JointStateError(RequestError):
+    """A joint state (a message, or joints given in a request) is unusable.
+
+    Attributes:
+        kind: what is wrong, one of :data:`JOINT_STATE_PROBLEMS`: 'length' (names and values
+            disagree), 'duplicate' (a name twice), 'none of' (no robot joint), 'missing' (some
+            robot joints), 'non-finite' (NaN/inf positions).
+    """
+
+    def __init__(self, message: str, *, kind: str) -> None:
+        super().__init__(message)
+        self.kind = kind
+
+
+#: The kinds of :class:`JointStateError`.
+JOINT_STATE_PROBLEMS = ('length', 'duplicate', 'none of', 'missing', 'non-finite')
+
+
 class TrajectoryError(RequestError):
     """A joint trajectory breaks joint_trajectory_controller's rules (the message lists them)."""
 
@@ -138,6 +156,7 @@ class BagError(GeodesicPlannerError):
 
 
 __all__ = [
+    'JOINT_STATE_PROBLEMS',
     'QUOTE_LIMIT',
     'BVPError',
     'BagError',
@@ -146,6 +165,7 @@ __all__ = [
     'GeodesicPlannerError',
     'GoalInCollisionError',
     'IKError',
+    'JointStateError',
     'KinematicsError',
     'LimitError',
     'PathInCollisionError',

@@ -20,7 +20,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..core.cancel import checkpoint
-from ..core.errors import FrameError, RequestError, quoted
+from ..core.errors import FrameError, JointStateError, quoted
 from ..core.transforms import make_transform, matrix_to_quat, pose_to_transform, quat_to_matrix
 from ..timing.validate import trajectory_problems
 
@@ -334,31 +334,31 @@ def joint_state_to_vector(msg: JointState, joint_names: Sequence[str],
     Returns:
         Positions, shape (dof,), rad or m.
     Raises:
-        RequestError: names/positions of different lengths, duplicate names, missing robot
-            joints, NaN/inf positions of robot joints.
+        JointStateError (a RequestError with its ``kind``): names/positions of different
+            lengths, duplicate names, missing robot joints, NaN/inf positions of robot joints.
     """
     names = list(msg.name)
     n = len(names)
     if len(msg.position) != n:
-        raise RequestError(f'{what}: {n} names but {len(msg.position)} positions')
+        raise JointStateError(f'{what}: {n} names but {len(msg.position)} positions', kind='length')
     for field in ('velocity', 'effort'):
         m = len(getattr(msg, field))
         if m not in (0, n):
-            raise RequestError(f'{what}: {n} names but {m} {field} values (expected 0 or {n})')
+            raise JointStateError(f'{what}: {n} names but {m} {field} values (expected 0 or {n})', kind='length')
     index = {name: i for i, name in enumerate(names)}
     if len(index) != n:
         dups = sorted({x for x in names if names.count(x) > 1})
-        raise RequestError(f'{what}: duplicate joint names {_names(dups)}')
+        raise JointStateError(f'{what}: duplicate joint names {_names(dups)}', kind='duplicate')
     missing = [j for j in joint_names if j not in index]
     if missing:
         if len(missing) == len(joint_names):
-            raise RequestError(
-                f'{what}: none of the robot joints {list(joint_names)} (got {_names(names)})')
-        raise RequestError(f'{what}: missing robot joints {missing} (got {_names(names)})')
+            raise JointStateError(
+                f'{what}: none of the robot joints {list(joint_names)} (got {_names(names)})', kind='none of')
+        raise JointStateError(f'{what}: missing robot joints {missing} (got {_names(names)})', kind='missing')
     q = np.array([msg.position[index[j]] for j in joint_names], dtype=float)
     bad = [j for j, v in zip(joint_names, q) if not np.isfinite(v)]
     if bad:
-        raise RequestError(f'{what}: non-finite position for joints {bad}')
+        raise JointStateError(f'{what}: non-finite position for joints {bad}', kind='non-finite')
     return q
 
 
@@ -370,12 +370,3 @@ def vector_to_joint_state(joint_names: Sequence[str], q: np.ndarray,
     msg.name = list(joint_names)
     msg.position = _darray(np.asarray(q, dtype=float).reshape(-1))
     return msg
-
-
-def joint_state_problem(message: str) -> str:
-    """Category of a rejected joint state, from its error message (warnings are rate-limited per
-    category)."""
-    for key in ('duplicate', 'missing', 'none of', 'non-finite'):
-        if key in message:
-            return key
-    return 'length'

@@ -99,7 +99,7 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from ..core.collision import CollisionModel
-from ..core.errors import GeodesicPlannerError, RequestError, quoted
+from ..core.errors import GeodesicPlannerError, JointStateError, quoted
 from ..io.requests import PlanRequest
 from . import conversions as cv
 from . import params, runtime
@@ -367,9 +367,8 @@ class GeodesicPlannerNode(Node):
         names = config.joint_names
         try:
             q = cv.joint_state_to_vector(msg, names)
-        except RequestError as err:
-            self._warn_rate_limited(cv.joint_state_problem(str(err)),
-                                    f'ignoring /joint_states message: {err}')
+        except JointStateError as err:
+            self._warn_rate_limited(err.kind, f'ignoring /joint_states message: {err}')
             return
         except Exception as err:  # noqa: BLE001 - boundary
             self._warn_rate_limited('internal', f'ignoring /joint_states message: internal error: '

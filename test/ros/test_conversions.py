@@ -209,3 +209,20 @@ def test_validate_rejects_one_mutation(mutation: str, match: str) -> None:
         msg.points[-1].time_from_start = cv.seconds_to_duration(0.1)
     problems = cv.validate_joint_trajectory(msg)
     assert any(match in p for p in problems), problems
+
+
+@pytest.mark.parametrize('names,positions,kind', [
+    (['a', 'b', 'c'], [0.0, 0.0], 'length'),
+    (['a', 'a', 'b', 'c'], [0.0] * 4, 'duplicate'),
+    (['x', 'y'], [0.0, 0.0], 'none of'),
+    (['a', 'b'], [0.0, 0.0], 'missing'),
+    (['a', 'b', 'c'], [0.0, float('nan'), 0.0], 'non-finite'),
+])
+def test_joint_state_errors_say_their_kind(names, positions, kind) -> None:
+    from sensor_msgs.msg import JointState
+
+    from geodesic_planner.core.errors import JOINT_STATE_PROBLEMS, JointStateError
+    msg = JointState(name=names, position=positions)
+    with pytest.raises(JointStateError) as info:
+        cv.joint_state_to_vector(msg, ['a', 'b', 'c'])
+    assert info.value.kind == kind and kind in JOINT_STATE_PROBLEMS

@@ -18,6 +18,7 @@ from geodesic_planner.ros.planning import ConfigError, PlanningFailedError, Plan
 EXPECTED = [
     (E.GeodesicPlannerError, C.PLANNING_FAILED), (E.RequestError, C.INVALID_REQUEST),
     (E.FrameError, C.FRAME_TRANSFORM_FAILURE), (E.StartStateError, C.START_STATE_MISMATCH),
+    (E.JointStateError, C.INVALID_REQUEST),
     (E.TrajectoryError, C.PLANNING_FAILED), (E.KinematicsError, C.PLANNING_FAILED),
     (E.SingularMetricError, C.PLANNING_FAILED), (E.IKError, C.NO_IK_SOLUTION),
     (E.BVPError, C.PLANNING_FAILED), (E.LimitError, C.JOINT_LIMITS_VIOLATED),
@@ -33,6 +34,8 @@ FOLLOW = [(E.PathFollowError, C.PLANNING_FAILED), (E.LineLimitError, C.JOINT_LIM
 def _make(cls: type) -> BaseException:
     if issubclass(cls, E.PathFollowError):
         return cls('x', fraction=0.5)
+    if issubclass(cls, E.JointStateError):
+        return cls('x', kind='missing')
     if issubclass(cls, E.CollisionError):
         return cls('x', pair=('a', 'b'), fraction=0.5, time=0.1, clearance=0.0)
     return cls('x')
