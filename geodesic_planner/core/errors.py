@@ -34,6 +34,10 @@ class StartStateError(RequestError):
     """A plan's first point is not where the robot is (beyond the allowed start tolerance)."""
 
 
+class ConfigError(GeodesicPlannerError, ValueError):
+    """A node's parameter value is invalid (the message names the parameter and the reason)."""
+
+
 class JointStateError(RequestError):
     """A joint state (a message, or joints given in a request) is unusable.
 
@@ -161,6 +165,7 @@ __all__ = [
     'BVPError',
     'BagError',
     'CollisionError',
+    'ConfigError',
     'FrameError',
     'GeodesicPlannerError',
     'GoalInCollisionError',

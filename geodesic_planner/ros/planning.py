@@ -36,7 +36,7 @@ from visualization_msgs.msg import MarkerArray
 from .. import GeodesicPlanner, load_robot
 from ..core.blend import BlendedPath
 from ..core.cancel import checkpoint
-from ..core.errors import (FrameError, GeodesicPlannerError, GoalInCollisionError, IKError, LimitError,
+from ..core.errors import (ConfigError, FrameError, GeodesicPlannerError, GoalInCollisionError, IKError, LimitError,
                            LineLimitError, LineUnreachableError, PathFollowError, PathInCollisionError,
                            RequestError, StartInCollisionError, StartStateError, TrajectoryError)
 from ..core.branches import first_clear, start_branches
@@ -60,10 +60,6 @@ WEIGHT_RATIO = (1e-3, 1e2)
 MAX_VIA_POSES = 100
 
 _ROBOT_KEYS = ('robot', 'robot_description', 'base_link', 'tip_link')
-
-
-class ConfigError(GeodesicPlannerError, ValueError):
-    """A parameter value is invalid (the message names the parameter and the reason)."""
 
 
 class PlanningFailedError(GeodesicPlannerError):

@@ -96,7 +96,7 @@ from rclpy.timer import Timer
 from trajectory_msgs.msg import JointTrajectory
 
 from ..io.bags import JOINT_STATE, JOINT_TRAJECTORY, BagRecorder, make_typestore, new_bag_path, to_cdr
-from ..core.errors import BagError, GeodesicPlannerError, RequestError
+from ..core.errors import BagError, ConfigError, GeodesicPlannerError
 from ..timing.resample import process_trajectory, sample_count
 from ..timing.validate import trajectory_problems
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory
@@ -165,7 +165,7 @@ class TrajectoryProcessorNode(Node):
     """The ``trajectory_processor`` node (see the module docstring).
 
     Raises:
-        RequestError: invalid parameter values or topic names at start.
+        ConfigError: invalid parameter values or topic names at start (as the planner's).
         BagError: the bag cannot be created.
     """
 
@@ -195,7 +195,7 @@ class TrajectoryProcessorNode(Node):
             if self.resolve_topic_name(input_topic) == self.resolve_topic_name(output_topic):
                 msg = (f'input_topic {input_topic!r} and output_topic {output_topic!r} are the same topic '
                        f'{self.resolve_topic_name(output_topic)}: the processor would process its own output')
-                raise RequestError(msg)
+                raise ConfigError(msg)
             events = SubscriptionEventCallbacks(matched=self._on_input_matched,
                                                 message_lost=self._on_input_lost,
                                                 incompatible_qos=self._on_input_incompatible)
@@ -209,7 +209,7 @@ class TrajectoryProcessorNode(Node):
                     on_count=lambda n: self.status.set(output_subscriptions_matched=n)))
         except (ValueError, TypeError, RuntimeError, NameValidationException) as err:
             msg = f'invalid topic name: {err}'
-            raise RequestError(msg) from err
+            raise ConfigError(msg) from err
         self.input_topic = self.input_sub.topic_name
         self.output_topic = self.output_pub.topic_name
 
@@ -245,13 +245,13 @@ class TrajectoryProcessorNode(Node):
             return self.resolve_topic_name(topic)
         except (NameValidationException, ValueError, RuntimeError) as err:
             msg = f'invalid topic name in record_topics: {topic!r} ({err})'
-            raise RequestError(msg) from err
+            raise ConfigError(msg) from err
 
     def _parse_record_topics(self) -> tuple[dict[str, str], dict[str, str], list[str]]:
         """record_topics -> (own trajectory topics, other typed topics, topics of unknown type).
 
         Raises:
-            RequestError: bad topic name, unknown message type, wrong type for input/output.
+            ConfigError: bad topic name, unknown message type, wrong type for input/output.
         """
         topics: dict[str, str] = {}
         extra: dict[str, str] = {}
@@ -262,13 +262,13 @@ class TrajectoryProcessorNode(Node):
             if topic in (self.input_topic, self.output_topic):
                 if msgtype and msgtype != JOINT_TRAJECTORY:
                     msg = f'record_topics: {topic} is a {JOINT_TRAJECTORY} topic, not {msgtype}'
-                    raise RequestError(msg)
+                    raise ConfigError(msg)
                 topics[topic] = JOINT_TRAJECTORY
             elif msgtype or topic in KNOWN_TYPES:
                 extra[topic] = msgtype or KNOWN_TYPES[topic]
                 if extra[topic] not in self._typestore.fielddefs:
                     msg = f'record_topics: unknown message type {extra[topic]!r} for {topic}'
-                    raise RequestError(msg)
+                    raise ConfigError(msg)
             elif topic not in pending:
                 pending.append(topic)
         return topics, extra, pending
@@ -303,7 +303,7 @@ class TrajectoryProcessorNode(Node):
             cls = getattr(importlib.import_module(f'{pkg}.msg'), name)
         except (ImportError, AttributeError) as err:
             msg = f'cannot record {topic}: message type {msgtype} not available in Python ({err})'
-            raise RequestError(msg) from err
+            raise ConfigError(msg) from err
         # Best effort matches reliable and best-effort publishers, whenever they appear.
         events = SubscriptionEventCallbacks(
             matched=functools.partial(self._log_matched, topic),
