@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from .constant_speed import ConstantSpeed
 from .jerk import JerkLimited
-from .law import JointLimits, PathLike, TimeLaw, TimeScaling
+from .law import TimeLaw
+from .types import JointLimits, PathLike, TimeScaling
 from .parameterize import time_parameterize
 from .smoothing import SmoothRestToRest
 from .trajectory import Trajectory

@@ -43,7 +43,8 @@ import numpy as np
 
 from ..core.errors import LimitError
 from ._arrays import clip
-from .law import JointLimits, PathLike, final_duration
+from .law import final_duration
+from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
 from .smoothing import CHECK_MARGIN, TOPP_MARGIN
 from .tool import tool_kinematics, tool_rows, tool_speeds, tool_twist

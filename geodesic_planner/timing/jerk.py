@@ -43,7 +43,8 @@ import numpy as np
 from ..core.cancel import checkpoint
 from ..core.errors import LimitError
 from ._arrays import clip
-from .law import JointLimits, PathLike, final_duration
+from .law import final_duration
+from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
 from .smoothing import (CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS,
                         TOPP_MARGIN, local_cap, peak_samples)

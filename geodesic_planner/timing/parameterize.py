@@ -13,7 +13,8 @@ import numpy.typing as npt
 
 from ..core.errors import LimitError
 from .jerk import JerkLimited
-from .law import PathLike, TimeLaw, check_duration, joint_limits
+from .law import TimeLaw, check_duration, joint_limits
+from .types import PathLike
 from .sampling import CORNER_TOLERANCE
 from .smoothing import CHECK_MARGIN, TOPP_MARGIN, SmoothRestToRest
 from .trajectory import Trajectory

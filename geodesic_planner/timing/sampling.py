@@ -22,7 +22,7 @@ from ..core.errors import LimitError
 from ._arrays import clip
 
 if TYPE_CHECKING:
-    from .law import PathLike
+    from .types import PathLike
 
 #: Offset (in s) used to read the left-hand derivatives at a breakpoint.
 _LEFT_EPS = 1e-12

@@ -36,7 +36,8 @@ import numpy as np
 from ..core.cancel import checkpoint
 from ..core.errors import LimitError
 from ._arrays import clip
-from .law import JointLimits, PathLike, final_duration
+from .law import final_duration
+from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
 from .tool import ToolRows, tool_rows
 from .topp import topp

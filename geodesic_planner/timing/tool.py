@@ -26,7 +26,7 @@ from ..core.errors import LimitError
 from .sampling import PathSamples
 
 if TYPE_CHECKING:
-    from .law import JointLimits, PathLike
+    from .types import JointLimits, PathLike
 
 #: What a tool limit needs of ``path.robot``.
 KINEMATICS = ('fk', 'jacobian12', 'hessian12')

@@ -18,7 +18,7 @@ from .validate import check_trajectory
 SAMPLE_BLOCK = 4096
 
 if TYPE_CHECKING:
-    from .law import PathLike, TimeScaling
+    from .types import PathLike, TimeScaling
 
 
 @dataclass(frozen=True, eq=False)

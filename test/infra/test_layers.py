@@ -102,3 +102,29 @@ def test_type_only_imports_count_as_module_level(tmp_path: Path) -> None:
     found = {(imp.target, imp.top_level) for imp in imports_of(src, root=tmp_path, modules=set())}
     assert ('geodesic_planner.timing.law', True) in found
     assert ('geodesic_planner.timing', False) in found
+
+
+def test_no_import_cycles() -> None:
+    """Module-level imports (type-only ones included) form no cycle, within a layer too (the time
+    laws' shared types live in the leaf timing.types)."""
+    graph: dict[str, set[str]] = {}
+    for imp in internal_edges():
+        if imp.top_level:
+            graph.setdefault(imp.source, set()).add(imp.target)
+    state: dict[str, int] = {}
+    cycles: list[list[str]] = []
+
+    def visit(node: str, stack: list[str]) -> None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                cycles.append(stack[stack.index(nxt):] + [nxt])
+            elif nxt not in state:
+                visit(nxt, stack)
+        stack.pop()
+        state[node] = 2
+    for node in sorted(graph):
+        if node not in state:
+            visit(node, [])
+    assert not cycles, '\n'.join(' -> '.join(c) for c in cycles)
