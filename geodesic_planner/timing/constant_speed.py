@@ -46,17 +46,17 @@ from ._arrays import clip
 from .law import final_duration
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
-from .smoothing import CHECK_MARGIN, TOPP_MARGIN
 from .tool import tool_kinematics, tool_rows, tool_speeds, tool_twist
 from .topp import topp
 from .trajectory import Trajectory
+from .tuning import CHECK_MARGIN, TOPP_MARGIN
 
 #: Default ramp: the fraction of each piece's duration spent accelerating (and as much braking).
 #: Shorter ramps need higher accelerations: on the paper's 3R, RRPP and ur5e/panda moves the law
 #: lasts about 2.0-2.5x the time-optimal duration with ramp 0.1, 1.4-1.6x with 0.25, 1.2-1.4x with 0.5.
 DEFAULT_RAMP = 0.25
 #: Uniform samples in u per piece for the minimal-T search (plus as many in each ramp).
-CHECK_SAMPLES = 2000
+PIECE_CHECK_SAMPLES = 2000
 #: Samples around which the grid is refined (per piece), and points per refinement.
 REFINE_TOP = 8
 REFINE_POINTS = 33
@@ -160,7 +160,7 @@ class ConstantSpeed:
 
     ramp: float = DEFAULT_RAMP
     grid_points: int = 100
-    check_samples: int = CHECK_SAMPLES
+    check_samples: int = PIECE_CHECK_SAMPLES
 
     def __post_init__(self) -> None:
         try:

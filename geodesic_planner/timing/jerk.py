@@ -46,8 +46,8 @@ from ._arrays import clip
 from .law import final_duration
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
-from .smoothing import (CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS,
-                        TOPP_MARGIN, local_cap, peak_samples)
+from .smoothing import local_cap, peak_samples
+from .tuning import CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS, TOPP_MARGIN
 from .tool import ToolRows, tool_rows
 from .topp import topp
 from .trajectory import Trajectory

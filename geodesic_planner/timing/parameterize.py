@@ -16,7 +16,8 @@ from .jerk import JerkLimited
 from .law import TimeLaw, check_duration, joint_limits
 from .types import PathLike
 from .sampling import CORNER_TOLERANCE
-from .smoothing import CHECK_MARGIN, TOPP_MARGIN, SmoothRestToRest
+from .smoothing import SmoothRestToRest
+from .tuning import CHECK_MARGIN, TOPP_MARGIN
 from .trajectory import Trajectory
 
 

@@ -40,28 +40,14 @@ from .law import final_duration
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
 from .tool import ToolRows, tool_rows
+from .tuning import (CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_MARGIN, LOCAL_PASSES, PEAK_CHECKS,
+                     PEAK_SAMPLES, S_UNIFORM_CHECKS, TOPP_MARGIN)
 from .topp import topp
 from .trajectory import Trajectory
 
-#: Relative margin kept below the limits (TOPP uses limits * (1 - TOPP_MARGIN)).
-TOPP_MARGIN = 1e-3
-#: After the dense check every sample satisfies |value| <= limit * (1 - CHECK_MARGIN).
-CHECK_MARGIN = 1e-3
-#: Samples of the dense check (those nearest a limit) re-verified with exact path derivatives.
-EXACT_CHECKS = 32
-#: Extra limit-check samples spread uniformly in s (mapped to t).
-S_UNIFORM_CHECKS = 250
-#: Dense check: ``max(CHECK_SAMPLES, 5 nodes)`` samples uniform in t, then around each of the
-#: PEAK_CHECKS highest local peaks of the ratios PEAK_SAMPLES more within one sample spacing
-#: (the peaks are seen at a quarter of the spacing, as 4 x CHECK_SAMPLES uniform samples would).
-CHECK_SAMPLES = 1000
-PEAK_CHECKS = 16
-PEAK_SAMPLES = 8
-#: Local slow-down passes (see SmoothRestToRest) when the smoothed law needs a stretch above
-#: LOCAL_TRIGGER; each caps the optimal profile near the samples over a limit, LOCAL_MARGIN below.
-LOCAL_PASSES = 8
+#: The smoothed law needs a uniform stretch above this: local slow-down passes (LOCAL_PASSES
+#: of them, see SmoothRestToRest), each capping the optimal profile near the samples over a limit.
 LOCAL_TRIGGER = 1.01
-LOCAL_MARGIN = 0.01
 #: A speed valley inside a rest-to-rest piece is deep when sdot drops below this fraction of the
 #: peak speed on both sides; the kernel of a piece with k deep valleys is (1 + k) times narrower
 #: (its ramps take ``smoothing`` of the time between valleys, as between rests).
@@ -532,5 +518,5 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
     return LimitCheck(max(1.0, rv / target, math.sqrt(ra / target)), t_chk, need)
 
 
-__all__ = ['CHECK_MARGIN', 'CHECK_SAMPLES', 'LOCAL_PASSES', 'LOCAL_TRIGGER', 'TOPP_MARGIN', 'PiecewiseLaw',
+__all__ = ['LOCAL_TRIGGER', 'PiecewiseLaw',
            'SmoothRestToRest', 'build_piecewise_law', 'local_cap', 'peak_samples']

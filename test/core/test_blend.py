@@ -331,8 +331,16 @@ def check_timed(path: BlendedPath, traj: Any) -> None:
         v_fd = np.linalg.norm(p_plus - p_minus, axis=1) / (2 * h)
         v_jac = np.linalg.norm(np.einsum('nij,nj->ni', path.robot.jacobian(qz)[:, :3], dqz), axis=1)
         assert_allclose(v_fd, v_jac, atol=1e-5 * peak)
-        assert v_fd.min() > 1e-3 * peak, f'via {z.via}: tool nearly stops ({v_fd.min()} m/s, peak {peak})'
-        assert np.abs(dqz).max(axis=1).min() > 0.0
+        # no stop: the joints keep moving (a rest is every joint at 0). The tool's linear speed
+        # alone may vanish where the via pose nearly reverses the line (the blend turns the tool
+        # round within the ball, turning its orientation meanwhile); elsewhere it keeps moving.
+        joint_peak = np.linalg.norm(dq, axis=1).max()
+        assert np.linalg.norm(dqz, axis=1).min() > 1e-3 * joint_peak, f'via {z.via}: the joints nearly stop'
+        k = path._via_index.index(z.via) + 1          # its junction among the kept pieces
+        a, v, b = (path.robot.fk(path.stopping_path.via_joints[i])[:3, 3] for i in (k - 1, k, k + 1))
+        cos_turn = float((v - a) @ (b - v) / (np.linalg.norm(v - a) * np.linalg.norm(b - v)))
+        if cos_turn > -0.9:           # not a near reversal: the tool itself keeps moving
+            assert v_fd.min() > 1e-3 * peak, f'via {z.via}: tool nearly stops ({v_fd.min()} m/s, peak {peak})'
 
 
 # ------------------------------------------------------------------------------ fixed sequences
