@@ -108,3 +108,27 @@ def test_ptp_without_inertias_says_it_took_the_joint_line() -> None:
     s = np.linspace(0.0, 1.0, 11)
     np.testing.assert_allclose(path.evaluate(s, 0)[0], Q0 + s[:, None] * 0.3, atol=1e-12)
     assert path.notes and 'joint line' in path.notes[0]
+
+
+def test_a_ptp_blends_into_a_lin() -> None:
+    """Blends join any two item types: a PTP (joint line) blended into a LIN, within the radius
+    and without the joints resting; the LIN's exact portion stays on its line."""
+    robot = load_robot('ur5e')
+    planner = GeodesicPlanner(robot)
+    q1 = Q0 + np.array([0.25, -0.1, 0.15, 0.1, -0.2, 0.1])
+    T1 = robot.fk(q1)
+    T2 = shifted(T1, [0.0, 0.15, 0.0])
+    path = plan_sequence(planner, [MotionItem('PTP', goal_joints=q1, ptp='joint_line', blend_radius=0.03),
+                                   MotionItem('LIN', goal=T2)], start_joints=Q0)
+    assert isinstance(path, BlendedPath) and len(path.zones) == 1
+    zone = path.zones[0]
+    assert zone.max_distance <= 0.03 * (1 + 1e-9)
+    traj = path.timed()
+    t = np.linspace(0.0, traj.duration, 3001)
+    s = traj.s_of_t(t)[0]
+    _, dq, _ = traj.at_time(t)
+    inside = (s >= zone.s_start) & (s <= zone.s_end)
+    assert np.linalg.norm(dq[inside], axis=1).min() > 0.05 * np.linalg.norm(dq, axis=1).max()
+    s_lin = np.linspace(zone.s_end, 1.0, 300)
+    p = robot.fk(path.evaluate(s_lin, 0)[0])[:, :3, 3]
+    assert segment_distance(p, T1[:3, 3], T2[:3, 3]).max() < 1e-8
