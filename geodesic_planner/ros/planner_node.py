@@ -88,25 +88,23 @@ from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.exceptions import ParameterException
-from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor
-from rclpy.experimental import EventsExecutor
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from ..core.collision import CollisionModel
-from ..core.errors import GeodesicPlannerError, JointStateError, quoted
+from ..core.errors import GeodesicPlannerError, quoted
 from ..io.requests import PlanRequest
-from . import conversions as cv
 from . import params, runtime
 from .admission import PlanQueue, PlanWorker, WorkerBusyError
 from .diagnostics import NodeStatus
 from .matching import matched_logger, wait_for_matched_subscriptions
 from .params import PLANNER_PARAMETERS
+from .joint_states import JointStateListener, RateLimitedWarnings
 from .scene_services import SceneServices
 from .sequence_service import SequenceService
 from .planning import (CODE_NAMES, ConfigError, PlannerConfig, PlanResult, PlanTimeoutError,
@@ -154,8 +152,7 @@ class GeodesicPlannerNode(Node):
         self._config: PlannerConfig | None = self._build(self._parameter_values(), None)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
-        self._state: tuple[np.ndarray, tuple[str, ...]] | None = None
-        self._last_warn: dict[str, float] = {}
+        self.warnings = RateLimitedWarnings(self.get_logger())
         self._abandoned = 0
         self._stop_ms_max = 0.0
         self.worker = PlanWorker(CANCEL_WAIT, self._stopped)
@@ -175,22 +172,10 @@ class GeodesicPlannerNode(Node):
             QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        # /joint_states (up to hundreds of Hz) is taken by a hidden node of its own, spun by an
-        # EventsExecutor in a thread of its own (start_state_thread): a state message never waits
-        # behind a plan, and it costs the plan executor nothing. The hidden node takes no global
-        # arguments (a __node remap must not rename it too), so the topic is resolved here,
-        # with the user's remappings. Its (empty) parameter services stay: a client's round trip
-        # with them is how a tool knows the node has matched its endpoints (tools/graph.py).
-        self.state_node = Node(f'_{self.get_name()}_joint_states', namespace=self.get_namespace(),
-                               context=self.context, use_global_arguments=False)
-        self.joint_state_sub = self.state_node.create_subscription(
-            JointState, self.resolve_topic_name('/joint_states'), self._on_joint_state,
-            QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
-                       reliability=ReliabilityPolicy.BEST_EFFORT,
-                       durability=DurabilityPolicy.VOLATILE))
-        self._state_executor: Executor | None = None  # an EventsExecutor (a factory function)
-        self._state_thread: threading.Thread | None = None
-        self._states_stop = threading.Event()
+        # /joint_states: a hidden node spun in a thread of its own (ros/joint_states.py)
+        self.joint_states = JointStateListener(
+            self, self.resolve_topic_name('/joint_states'),
+            lambda: self._config.joint_names if self._config is not None else None, self.warnings)
         # Both services: a reentrant group on a pool of max_queued_requests + 3 threads, so that a
         # thread is always free to take the next request, and the PlanQueue (admission, one plan
         # at a time, in order). KEEP_ALL: DDS never overwrites a request or a reply in a burst.
@@ -323,65 +308,18 @@ class GeodesicPlannerNode(Node):
         return SetParametersResult(successful=True)
 
     # ------------------------------------------------------------------ joint states
-    def _warn_rate_limited(self, kind: str, text: str, period: float = 2.0) -> None:
-        now = time.monotonic()
-        if now - self._last_warn.get(kind, -math.inf) >= period:
-            self._last_warn[kind] = now
-            self.get_logger().warning(text)
-
     def start_state_thread(self) -> None:
-        """Serve /joint_states from a thread of its own (see the constructor)."""
-        self._state_executor = EventsExecutor(context=self.context)
-        self._state_executor.add_node(self.state_node)
-        self._state_thread = threading.Thread(target=self._spin_states, name='joint_states', daemon=True)
-        self._state_thread.start()
-
-    def _spin_states(self) -> None:
-        executor = self._state_executor
-        assert executor is not None
-        while self.context.ok() and not self._states_stop.is_set():
-            try:
-                executor.spin_once(timeout_sec=0.1)
-            except ExternalShutdownException:
-                return
-            except Exception as err:  # noqa: BLE001 - boundary: one bad message never ends the thread
-                if not self.context.ok():
-                    return
-                self.get_logger().error(f'/joint_states: internal error: {type(err).__name__}: {err}')
+        """Serve /joint_states from a thread of its own (ros/joint_states.py)."""
+        self.joint_states.start()
 
     def destroy_node(self) -> None:
         """Stop the state thread, then destroy both nodes."""
-        # The EventsExecutor must not be shut down while its thread spins it: stop, join, shut down.
-        self._states_stop.set()
-        if self._state_thread is not None:
-            self._state_thread.join(timeout=2.0)
-        if self._state_executor is not None and (self._state_thread is None or not self._state_thread.is_alive()):
-            self._state_executor.shutdown(timeout_sec=1.0)
-        self.state_node.destroy_node()
+        self.joint_states.destroy()
         super().destroy_node()
-
-    def _on_joint_state(self, msg: JointState) -> None:
-        config = self._config
-        if config is None:
-            return
-        names = config.joint_names
-        try:
-            q = cv.joint_state_to_vector(msg, names)
-        except JointStateError as err:
-            self._warn_rate_limited(err.kind, f'ignoring /joint_states message: {err}')
-            return
-        except Exception as err:  # noqa: BLE001 - boundary
-            self._warn_rate_limited('internal', f'ignoring /joint_states message: internal error: '
-                                    f'{type(err).__name__}: {err}')
-            return
-        self._state = (q, names)
 
     def current_joints(self, names: tuple[str, ...]) -> np.ndarray | None:
         """Latest valid joint state for ``names`` (None if none, or if it was read for other names)."""
-        state = self._state
-        if state is None or state[1] != names:
-            return None
-        return state[0]
+        return self.joint_states.current(names)
 
     # ------------------------------------------------------------------ service
     def _await_subscriptions(self) -> None:
@@ -500,9 +438,7 @@ class GeodesicPlannerNode(Node):
         """Answer a request the queue cannot take: counted, on /diagnostics, logged rate-limited."""
         refused = self.queue.refused
         self.status.set(requests_refused_queue_full=refused)
-        now = time.monotonic()
-        if now - self._last_warn.get('overload', -math.inf) >= 2.0:
-            self._last_warn['overload'] = now
+        if self.warnings.due('overload'):
             self.get_logger().warning(
                 f'planner overloaded: refused {refused - self._refused_logged} request(s) since the '
                 f'last report ({refused} since start): {self.queue.depth} already queued or planning '
