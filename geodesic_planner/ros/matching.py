@@ -49,3 +49,33 @@ def matched_logger(node: Node, topic: str,
             if on_count is not None:
                 on_count(count)
     return PublisherEventCallbacks(matched=on_matched)
+
+
+class MatchBeforePublish:
+    """Before a one-off publish on ``publisher``: let the subscriptions the graph shows match it.
+
+    A subscriber that subscribes just before calling a service may be in the graph but not yet
+    matched. Waits at most MATCH_TIMEOUT; a mismatch that already timed out (e.g. a subscriber with
+    incompatible QoS) is not waited for again while the graph count stays the same.
+    """
+
+    def __init__(self, node: Node, publisher: Publisher) -> None:
+        self._node, self._pub = node, publisher
+        self._unmatched_graph_count: int | None = None
+
+    def __call__(self) -> None:
+        node, pub = self._node, self._pub
+        graph = node.count_subscribers(pub.topic_name)
+        if pub.get_subscription_count() >= graph or graph == self._unmatched_graph_count:
+            return
+        t0 = time.monotonic()
+        matched = wait_for_matched_subscriptions(node, pub)
+        waited_ms = (time.monotonic() - t0) * 1e3
+        graph = node.count_subscribers(pub.topic_name)
+        self._unmatched_graph_count = graph if matched < graph else None
+        if matched < graph:
+            node.get_logger().warning(
+                f'publishing with {matched} of {graph} subscriptions matched after waiting '
+                f'{waited_ms:.0f} ms (QoS incompatible or still discovering?)')
+        else:
+            node.get_logger().info(f'waited {waited_ms:.1f} ms for {graph} subscriptions to match')

@@ -102,7 +102,7 @@ from ..io.requests import PlanRequest
 from . import params, runtime
 from .admission import PlanQueue, PlanWorker, WorkerBusyError
 from .diagnostics import NodeStatus
-from .matching import matched_logger, wait_for_matched_subscriptions
+from .matching import MatchBeforePublish, matched_logger
 from .params import PLANNER_PARAMETERS
 from .joint_states import JointStateListener, RateLimitedWarnings
 from .scene_services import SceneServices
@@ -156,7 +156,6 @@ class GeodesicPlannerNode(Node):
         self._abandoned = 0
         self._stop_ms_max = 0.0
         self.worker = PlanWorker(CANCEL_WAIT, self._stopped)
-        self._unmatched_graph_count: int | None = None
 
         self.status = NodeStatus(self)
         self.status.set(trajectory_subscriptions_matched=0)
@@ -167,6 +166,7 @@ class GeodesicPlannerNode(Node):
             event_callbacks=matched_logger(
                 self, self.resolve_topic_name('~/joint_trajectory'),
                 on_count=lambda n: self.status.set(trajectory_subscriptions_matched=n)))
+        self._await_subscriptions = MatchBeforePublish(self, self.trajectory_pub)
         self.marker_pub = self.create_publisher(
             MarkerArray, '~/path_markers',
             QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
@@ -322,30 +322,6 @@ class GeodesicPlannerNode(Node):
         return self.joint_states.current(names)
 
     # ------------------------------------------------------------------ service
-    def _await_subscriptions(self) -> None:
-        """Before a one-off publish: let subscriptions the graph shows match the writer.
-
-        A volatile reader gets only what is published after it matched, and a subscriber that
-        subscribes just before calling ``~/plan`` may be in the graph but not yet matched. Waits
-        at most MATCH_TIMEOUT (1 s); a mismatch that already timed out (e.g. a subscriber with
-        incompatible QoS) is not waited for again while the graph count stays the same.
-        """
-        pub = self.trajectory_pub
-        graph = self.count_subscribers(pub.topic_name)
-        if pub.get_subscription_count() >= graph or graph == self._unmatched_graph_count:
-            return
-        t0 = time.monotonic()
-        matched = wait_for_matched_subscriptions(self, pub)
-        waited_ms = (time.monotonic() - t0) * 1e3
-        graph = self.count_subscribers(pub.topic_name)
-        self._unmatched_graph_count = graph if matched < graph else None
-        if matched < graph:
-            self.get_logger().warning(
-                f'publishing with {matched} of {graph} subscriptions matched after waiting '
-                f'{waited_ms:.0f} ms (QoS incompatible or still discovering?)')
-        else:
-            self.get_logger().info(f'waited {waited_ms:.1f} ms for {graph} subscriptions to match')
-
     def _on_plan(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
         """nav_msgs/GetPlan (compatibility, unchanged): every successful plan is published; the
         reply holds only the tool path (no poses on failure, the reason is logged); an explicit
