@@ -30,10 +30,11 @@ from typing import Any
 import numpy as np
 import yaml
 
-from ..core.errors import RequestError
+from ..core.errors import GeodesicPlannerError, RequestError
 from ..core.kinematics import Chain
 
-__all__ = ['MAX_FILE_BYTES', 'JointLimits', 'apply_joint_limits', 'load_joint_limits', 'parse_joint_limits']
+__all__ = ['MAX_FILE_BYTES', 'JointLimits', 'MergedLimits', 'apply_joint_limits', 'load_joint_limits', 'merge_limits',
+           'parse_joint_limits']
 
 #: Largest joint_limits.yaml read, bytes (a real one is a few kB).
 MAX_FILE_BYTES = 1 << 20
@@ -162,3 +163,89 @@ def apply_joint_limits(robot: Chain, limits: JointLimits) -> tuple[Chain, list[s
     acc = limits.per_joint('acceleration', names)
     max_acceleration = np.where(np.isnan(acc), robot.max_acceleration, acc)
     return robot.with_limits(max_velocity=max_velocity.tolist(), max_acceleration=max_acceleration.tolist()), notes
+
+
+@dataclass(frozen=True)
+class MergedLimits:
+    """A robot's limits after every source, lowest priority first: the model's (URDF or preset), a
+    joint_limits.yaml, then explicit per-joint values.
+
+    Attributes:
+        max_velocity, max_acceleration: (dof,), rad/s (m/s), rad/s^2 (m/s^2).
+        max_jerk: (dof,) rad/s^3 (m/s^3), or None (no jerk limit: none given, or not for every
+            joint, which a note says).
+        default_velocity_factor, default_acceleration_factor: the file's default scaling factors
+            (1 without one).
+        notes: what was ignored or assumed, for the log.
+    """
+
+    max_velocity: np.ndarray
+    max_acceleration: np.ndarray
+    max_jerk: np.ndarray | None
+    default_velocity_factor: float = 1.0
+    default_acceleration_factor: float = 1.0
+    notes: tuple[str, ...] = ()
+
+
+def _per_joint(name: str, value: Sequence[float] | np.ndarray | None, default: np.ndarray, dof: int) -> np.ndarray:
+    """Per-joint limits from a value: empty -> default, 1 value -> all joints."""
+    vals = [] if value is None else list(value)
+    if not vals:
+        return np.asarray(default, dtype=float).copy()
+    arr = np.array(vals, dtype=float)
+    if arr.size not in (1, dof):
+        raise RequestError(f'{name}: {arr.size} values for a robot with {dof} joints '
+                           f'(give {dof} values, one value for all joints, or none for defaults)')
+    return np.broadcast_to(arr, (dof,)).copy()
+
+
+def merge_limits(robot: Chain, joint_limits: str, max_velocity: Sequence[float] | None,
+                 max_acceleration: Sequence[float] | None, max_jerk: Sequence[float] | None, *,
+                 accel_known: bool) -> MergedLimits:
+    """Merge the model's limits, a joint_limits.yaml (path, '' for none) and explicit values
+    (empty: keep; one value: every joint).
+
+    ``accel_known``: the model's acceleration limits are real (a preset), not a URDF's default
+    (URDF has none): joints left without a known one get a note.
+
+    Raises:
+        RequestError: a value count that fits no joint count; the file's errors (named
+            ``joint_limits:``).
+    """
+    dof = robot.dof
+    known = np.full(dof, bool(accel_known))
+    velocity, acceleration = robot.max_velocity, robot.max_acceleration
+    fv = fa = 1.0
+    notes: list[str] = []
+    jerk = np.full(dof, np.nan)
+    if joint_limits.strip():
+        try:
+            limits = load_joint_limits(joint_limits)
+        except GeodesicPlannerError as err:
+            raise RequestError(f'joint_limits: {err}') from err
+        limited, file_notes = apply_joint_limits(robot, limits)
+        known |= ~np.isnan(limits.per_joint('acceleration', robot.joint_names))
+        velocity, acceleration = limited.max_velocity.copy(), limited.max_acceleration.copy()
+        jerk = limits.per_joint('jerk', robot.joint_names)
+        fv, fa = limits.default_velocity_scaling_factor, limits.default_acceleration_scaling_factor
+        notes += [f'joint_limits: {n}' for n in file_notes]
+    jerk = _per_joint('max_jerk', max_jerk, jerk, dof)
+    final_jerk: np.ndarray | None = jerk
+    if np.isnan(jerk).any():
+        final_jerk = None
+        if not np.isnan(jerk).all():
+            missing = [n for n, x in zip(robot.joint_names, jerk) if np.isnan(x)]
+            notes.append(f'jerk limits not applied: joints {missing} have none (joint_limits gives '
+                         'some joints one; set max_jerk for every joint to limit the jerk)')
+    vel = _per_joint('max_velocity', max_velocity, velocity, dof)
+    acc = _per_joint('max_acceleration', max_acceleration, acceleration, dof)
+    if list(max_acceleration or []):
+        known[:] = True
+    if not known.all():
+        missing = [n for n, k in zip(robot.joint_names, known) if not k]
+        used = sorted({f'{a:g}' for a, k in zip(acc, known) if not k})
+        notes.append(
+            f'no acceleration limit for joints {missing} from the model, joint_limits or '
+            f'max_acceleration: using the default {", ".join(used)} rad/s^2 (m/s^2 for prismatic '
+            'joints); set them in a joint_limits.yaml')
+    return MergedLimits(vel, acc, final_jerk, fv, fa, tuple(notes))

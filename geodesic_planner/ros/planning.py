@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -45,7 +45,7 @@ from ..core.kinematics import Chain
 from ..core.path import JointPath
 from ..core.robots import is_urdf_path
 from ..io.collision_setup import collision_for_parameters
-from ..io.joint_limits import apply_joint_limits, load_joint_limits
+from ..io.joint_limits import merge_limits
 from ..io.requests import PlanRequest
 from ..timing.resample import MAX_POINTS, sample_count
 from ..timing.validate import trajectory_problems
@@ -186,18 +186,6 @@ class PlanResult:
     notes: tuple[str, ...] = ()
 
 
-def _limits(name: str, value: Sequence[float] | np.ndarray | None, default: np.ndarray, dof: int) -> np.ndarray:
-    """Per-joint limits from a checked parameter value: empty -> default, 1 value -> all joints."""
-    vals = [] if value is None else list(value)
-    if not vals:
-        return np.asarray(default, dtype=float).copy()
-    arr = np.array(vals, dtype=float)
-    if arr.size not in (1, dof):
-        raise ConfigError(f'{name}: {arr.size} values for a robot with {dof} joints '
-                          f'(give {dof} values, one value for all joints, or none for defaults)')
-    return np.broadcast_to(arr, (dof,)).copy()
-
-
 def load_model(robot: str, robot_description: str, base_link: str, tip_link: str) -> Chain:
     """Robot model from a URDF string (when not empty) or a preset name / URDF path.
 
@@ -223,22 +211,6 @@ def load_model(robot: str, robot_description: str, base_link: str, tip_link: str
 def _is_urdf_source(robot: str, robot_description: str) -> bool:
     """True when the model comes from a URDF (which has no acceleration limits), not a preset."""
     return bool(robot_description.strip()) or is_urdf_path(robot)
-
-
-def _joint_limits_file(path: str, robot: Chain, accel_known: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float, list[str]]:
-    """Velocity, acceleration and jerk limits (NaN: none), default scaling factors and notes
-    from a joint_limits.yaml."""
-    try:
-        limits = load_joint_limits(path)
-    except GeodesicPlannerError as err:
-        raise ConfigError(f'joint_limits: {err}') from err
-    limited, notes = apply_joint_limits(robot, limits)
-    accel_known |= ~np.isnan(limits.per_joint('acceleration', robot.joint_names))
-    return (limited.max_velocity.copy(), limited.max_acceleration.copy(),
-            limits.per_joint('jerk', robot.joint_names),
-            limits.default_velocity_scaling_factor, limits.default_acceleration_scaling_factor,
-            [f'joint_limits: {n}' for n in notes])
 
 
 def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) -> PlannerConfig:
@@ -288,36 +260,12 @@ def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) 
             except GeodesicPlannerError as err:
                 raise ConfigError(f'joint_names: {err}') from err
         robot = model
-    accel_known = np.full(robot.dof, not _is_urdf_source(robot_key[0], robot_key[1]))
-    velocity, acceleration = robot.max_velocity, robot.max_acceleration
-    default_fv = default_fa = 1.0
-    notes: list[str] = []
-    jerk = np.full(robot.dof, np.nan)
-    if str(values['joint_limits']).strip():
-        velocity, acceleration, jerk, default_fv, default_fa, notes = _joint_limits_file(
-            str(values['joint_limits']), robot, accel_known)
-    jerk = _limits('max_jerk', values['max_jerk'], jerk, robot.dof)
-    if np.isnan(jerk).all():
-        max_jerk = None
-    elif np.isnan(jerk).any():
-        max_jerk = None
-        missing = [n for n, j in zip(robot.joint_names, jerk) if np.isnan(j)]
-        notes.append(f'jerk limits not applied: joints {missing} have none (joint_limits gives '
-                     'some joints one; set max_jerk for every joint to limit the jerk)')
-    else:
-        max_jerk = jerk
-    max_velocity = _limits('max_velocity', values['max_velocity'], velocity, robot.dof)
-    max_acceleration = _limits('max_acceleration', values['max_acceleration'],
-                               acceleration, robot.dof)
-    if list(values['max_acceleration'] or []):
-        accel_known[:] = True
-    if not accel_known.all():
-        missing = [n for n, known in zip(robot.joint_names, accel_known) if not known]
-        used = sorted({f'{a:g}' for a, known in zip(max_acceleration, accel_known) if not known})
-        notes.append(
-            f'no acceleration limit for joints {missing} from the model, joint_limits or '
-            f'max_acceleration: using the default {", ".join(used)} rad/s^2 (m/s^2 for prismatic '
-            'joints); set them in a joint_limits.yaml')
+    try:
+        lim = merge_limits(robot, str(values['joint_limits']), values['max_velocity'],
+                           values['max_acceleration'], values['max_jerk'],
+                           accel_known=not _is_urdf_source(robot_key[0], robot_key[1]))
+    except GeodesicPlannerError as err:
+        raise ConfigError(str(err)) from err
     tool_speed = float(values['max_tool_speed'])
     tool_angular_speed = float(values['max_tool_angular_speed'])
     planner_key = robot_key + (names, metric, pw, ow)
@@ -338,13 +286,14 @@ def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) 
     return PlannerConfig(
         robot=robot, planner=planner, robot_key=robot_key + (names,), planner_key=planner_key,
         joint_names=tuple(robot.joint_names), frame_id=frame_id or robot.base_link,
-        max_velocity=max_velocity, max_acceleration=max_acceleration,
+        max_velocity=lim.max_velocity, max_acceleration=lim.max_acceleration,
         velocity_scaling=scaling, sample_period=sample_period, plan_timeout=plan_timeout,
         max_tool_speed=tool_speed or None, max_tool_angular_speed=tool_angular_speed or None,
-        max_jerk=max_jerk,
+        max_jerk=lim.max_jerk,
         allowed_start_tolerance=float(values['allowed_start_tolerance']),
-        default_velocity_factor=default_fv, default_acceleration_factor=default_fa,
-        notes=tuple(notes), collision=collision, collision_key=collision_key)
+        default_velocity_factor=lim.default_velocity_factor,
+        default_acceleration_factor=lim.default_acceleration_factor,
+        notes=lim.notes, collision=collision, collision_key=collision_key)
 
 
 # --------------------------------------------------------------------------- requests

@@ -101,3 +101,30 @@ def test_file_sources_are_bounded(tmp_path: Path) -> None:
     bad.write_text('joint_limits: [unclosed')
     with pytest.raises(RequestError, match='not valid YAML'):
         load_joint_limits(bad)
+
+
+def test_merge_limits_priorities_and_notes(tmp_path) -> None:
+    """Model < file < explicit values; jerk only when every joint has one (else a note); a value
+    count that fits no joint count is refused."""
+    import numpy as np
+    import pytest as _pytest
+
+    from geodesic_planner import load_robot
+    from geodesic_planner.core.errors import RequestError
+    from geodesic_planner.io.joint_limits import merge_limits
+
+    robot = load_robot('ur5e')
+    names = robot.joint_names
+    path = tmp_path / 'joint_limits.yaml'
+    path.write_text('joint_limits:\n'
+                    f'  {names[0]}: {{has_velocity_limits: true, max_velocity: 0.5, has_jerk_limits: true, max_jerk: 9.0}}\n')
+    lim = merge_limits(robot, str(path), [], [], [], accel_known=True)
+    assert lim.max_velocity[0] == 0.5 and np.array_equal(lim.max_velocity[1:], robot.max_velocity[1:])
+    assert lim.max_jerk is None and any('jerk limits not applied' in n for n in lim.notes)
+    lim = merge_limits(robot, str(path), [0.3], [2.0], [7.0], accel_known=True)
+    assert np.all(lim.max_velocity == 0.3) and np.all(lim.max_acceleration == 2.0)
+    assert lim.max_jerk is not None and np.all(lim.max_jerk == 7.0)
+    lim = merge_limits(robot, '', [], [], [], accel_known=False)
+    assert any('no acceleration limit' in n for n in lim.notes)
+    with _pytest.raises(RequestError, match='max_velocity: 2 values'):
+        merge_limits(robot, '', [1.0, 2.0], [], [], accel_known=True)
