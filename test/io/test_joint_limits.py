@@ -116,8 +116,8 @@ def test_merge_limits_priorities_and_notes(tmp_path) -> None:
     robot = load_robot('ur5e')
     names = robot.joint_names
     path = tmp_path / 'joint_limits.yaml'
-    path.write_text('joint_limits:\n'
-                    f'  {names[0]}: {{has_velocity_limits: true, max_velocity: 0.5, has_jerk_limits: true, max_jerk: 9.0}}\n')
+    path.write_text(f'joint_limits:\n  {names[0]}: {{has_velocity_limits: true, max_velocity: 0.5,\n'
+                    '    has_jerk_limits: true, max_jerk: 9.0}\n')
     lim = merge_limits(robot, str(path), [], [], [], accel_known=True)
     assert lim.max_velocity[0] == 0.5 and np.array_equal(lim.max_velocity[1:], robot.max_velocity[1:])
     assert lim.max_jerk is None and any('jerk limits not applied' in n for n in lim.notes)
