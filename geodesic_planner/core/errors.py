@@ -38,6 +38,14 @@ class ConfigError(GeodesicPlannerError, ValueError):
     """A node's parameter value is invalid (the message names the parameter and the reason)."""
 
 
+class PlanningFailedError(GeodesicPlannerError):
+    """A valid request gave no plan a node can deliver (e.g. too many trajectory points)."""
+
+
+class PlanTimeoutError(GeodesicPlannerError):
+    """A plan took longer than the node's ``plan_timeout``."""
+
+
 class JointStateError(RequestError):
     """A joint state (a message, or joints given in a request) is unusable.
 
@@ -174,6 +182,8 @@ __all__ = [
     'KinematicsError',
     'LimitError',
     'PathInCollisionError',
+    'PlanTimeoutError',
+    'PlanningFailedError',
     'RequestError',
     'SingularMetricError',
     'StartInCollisionError',

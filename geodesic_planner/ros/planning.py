@@ -38,7 +38,8 @@ from ..core.blend import BlendedPath
 from ..core.cancel import checkpoint
 from ..core.errors import (ConfigError, FrameError, GeodesicPlannerError, GoalInCollisionError, IKError, LimitError,
                            LineLimitError, LineUnreachableError, PathFollowError, PathInCollisionError,
-                           RequestError, StartInCollisionError, StartStateError, TrajectoryError)
+                           PlanningFailedError, PlanTimeoutError, RequestError, StartInCollisionError,
+                           StartStateError, TrajectoryError)
 from ..core.branches import first_clear, start_branches
 from ..core.collision import MotionClearance
 from ..core.kinematics import Chain
@@ -60,14 +61,6 @@ WEIGHT_RATIO = (1e-3, 1e2)
 MAX_VIA_POSES = 100
 
 _ROBOT_KEYS = ('robot', 'robot_description', 'base_link', 'tip_link')
-
-
-class PlanningFailedError(GeodesicPlannerError):
-    """A valid request gave no plan the node can deliver (e.g. too many trajectory points)."""
-
-
-class PlanTimeoutError(GeodesicPlannerError):
-    """The plan took longer than ``plan_timeout``."""
 
 
 #: Library error class -> PlanErrorCode value, one row per class; an error takes the code of the

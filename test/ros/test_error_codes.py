@@ -13,7 +13,7 @@ pytest.importorskip('geodesic_planner_interfaces')
 from geodesic_planner_interfaces.msg import PlanErrorCode as C
 
 from geodesic_planner.core import errors as E
-from geodesic_planner.ros.planning import PlanningFailedError, PlanTimeoutError, error_code
+from geodesic_planner.ros.planning import error_code
 
 EXPECTED = [
     (E.GeodesicPlannerError, C.PLANNING_FAILED), (E.RequestError, C.INVALID_REQUEST),
@@ -25,7 +25,7 @@ EXPECTED = [
     (E.BagError, C.PLANNING_FAILED), (E.CollisionError, C.PLANNING_FAILED),
     (E.StartInCollisionError, C.START_STATE_IN_COLLISION), (E.GoalInCollisionError, C.GOAL_IN_COLLISION),
     (E.PathInCollisionError, C.INVALID_MOTION_PLAN), (E.ConfigError, C.PLANNING_FAILED),
-    (PlanningFailedError, C.PLANNING_FAILED), (PlanTimeoutError, C.TIMED_OUT),
+    (E.PlanningFailedError, C.PLANNING_FAILED), (E.PlanTimeoutError, C.TIMED_OUT),
 ]
 FOLLOW = [(E.PathFollowError, C.PLANNING_FAILED), (E.LineLimitError, C.JOINT_LIMITS_VIOLATED),
           (E.LineUnreachableError, C.NO_IK_SOLUTION)]
