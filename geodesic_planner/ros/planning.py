@@ -7,12 +7,10 @@ library's :class:`~geodesic_planner.io.requests.PlanRequest`; :func:`compute_pla
 the JointTrajectory, tool Path and markers through the library (``PlanRequest.plan``,
 ``path.timed``, ``trajectory.sample``); :func:`error_code` names the PlanErrorCode of any error.
 
-Timing: ``path.timed(max_velocity * fv, max_acceleration * fa)`` with ``fv = velocity_scaling *
-velocity_scaling_factor`` and ``fa = velocity_scaling**2 * acceleration_scaling_factor`` (the
-request's factors; 0 or GetPlan: the joint_limits.yaml defaults, else 1). With factors 1 this is
-exactly time scaling as joint_trajectory_controller applies it (durations / f, velocities * f,
-accelerations * f**2, same path). The tool speed limits are scaled by ``fv``. The trajectory is
-sampled every ``sample_period`` s with positions, velocities and accelerations at every point.
+Timing: ``path.timed`` under :func:`~geodesic_planner.timing.law.scaled_limits` of the
+configuration (``velocity_scaling``) and the request's factors (0 or GetPlan: the
+joint_limits.yaml defaults, else 1). The trajectory is sampled every ``sample_period`` s with
+positions, velocities and accelerations at every point.
 """
 from __future__ import annotations
 
@@ -48,6 +46,7 @@ from ..core.robots import is_urdf_path
 from ..io.collision_setup import collision_for_parameters
 from ..io.joint_limits import merge_limits
 from ..io.requests import PlanRequest
+from ..timing.law import scaled_limits
 from ..timing.resample import MAX_POINTS, sample_count
 from ..timing.validate import trajectory_problems
 from . import conversions as cv
@@ -432,15 +431,11 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
     if request.start is None and request.start_joints is None:
         request = replace(request, start_joints=_start_from_state(config, current_q))
     t0 = time.perf_counter()
-    fv = config.velocity_scaling * (velocity_factor or config.default_velocity_factor)
-    fa = config.velocity_scaling ** 2 * (acceleration_factor or config.default_acceleration_factor)
-    limits: dict[str, Any] = {}  # the optional limits of path.timed
-    if config.max_tool_speed is not None:
-        limits['max_tool_speed'] = config.max_tool_speed * fv
-    if config.max_tool_angular_speed is not None:
-        limits['max_tool_angular_speed'] = config.max_tool_angular_speed * fv
-    if config.max_jerk is not None:     # time scaling by f multiplies jerk by f^3
-        limits['max_jerk'] = config.max_jerk * config.velocity_scaling ** 3
+    limits = scaled_limits(config.max_velocity, config.max_acceleration, config.velocity_scaling,
+                           velocity_factor or config.default_velocity_factor,
+                           acceleration_factor or config.default_acceleration_factor,
+                           max_jerk=config.max_jerk, max_tool_speed=config.max_tool_speed,
+                           max_tool_angular_speed=config.max_tool_angular_speed)
     spent = {'plan': 0.0, 'timing': 0.0}
 
     def attempt(q_start: np.ndarray | None) -> tuple[Any, Any]:
@@ -449,8 +444,7 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
         path = req.plan(config.planner, start_seed=current_q)
         check_start_state(config, path.q_start, current_q)
         tb = time.perf_counter()
-        trajectory = path.timed(max_velocity=config.max_velocity * fv,
-                                max_acceleration=config.max_acceleration * fa, **limits)
+        trajectory = path.timed(**limits)
         spent['plan'] += tb - ta
         spent['timing'] += time.perf_counter() - tb
         return path, trajectory

@@ -10,7 +10,7 @@ call.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -137,4 +137,29 @@ def final_duration(duration: float | None, t_min: float) -> float:
 
 
 __all__ = ['JointLimits', 'PathLike', 'TimeLaw', 'TimeScaling', 'check_duration', 'final_duration',
-           'joint_limits']
+           'joint_limits', 'scaled_limits']
+
+
+def scaled_limits(max_velocity: np.ndarray, max_acceleration: np.ndarray, time_scaling: float,
+                  velocity_factor: float = 1.0, acceleration_factor: float = 1.0, *,
+                  max_jerk: np.ndarray | None = None, max_tool_speed: float | None = None,
+                  max_tool_angular_speed: float | None = None) -> dict[str, Any]:
+    """The limits a scaled motion is timed under, as ``path.timed`` keyword arguments.
+
+    A time scaling ``f`` (joint_trajectory_controller's: durations / f, velocities * f,
+    accelerations * f**2, jerks * f**3, same path) and a request's velocity and acceleration
+    factors (MoveIt's): velocities * f * velocity_factor (the tool speeds too), accelerations
+    * f**2 * acceleration_factor, jerks * f**3. With factors 1 the result is exactly the time
+    scaling of the unscaled motion. Units as given (rad or m, per s, s^2, s^3).
+    """
+    fv = time_scaling * velocity_factor
+    out: dict[str, Any] = {'max_velocity': np.asarray(max_velocity, dtype=float) * fv,
+                           'max_acceleration': np.asarray(max_acceleration, dtype=float)
+                           * time_scaling ** 2 * acceleration_factor}
+    if max_tool_speed is not None:
+        out['max_tool_speed'] = max_tool_speed * fv
+    if max_tool_angular_speed is not None:
+        out['max_tool_angular_speed'] = max_tool_angular_speed * fv
+    if max_jerk is not None:
+        out['max_jerk'] = np.asarray(max_jerk, dtype=float) * time_scaling ** 3
+    return out

@@ -65,3 +65,22 @@ def test_entry_validates_limits_and_duration_before_any_law_runs():
     with pytest.raises(LimitError, match='duration'):
         time_parameterize(curved(), 1.0, 1.0, duration=-1.0, law=law)
     assert calls == []
+
+
+def test_scaled_limits_is_time_scaling_with_factors_one() -> None:
+    """f = 0.5: velocities x 0.5, accelerations x 0.25, jerks x 0.125; the factors multiply
+    velocities (tool speeds too) and accelerations only."""
+    import numpy as np
+
+    from geodesic_planner.timing.law import scaled_limits
+
+    v, a, j = np.array([1.0, 2.0]), np.array([4.0, 8.0]), np.array([16.0, 32.0])
+    out = scaled_limits(v, a, 0.5, max_jerk=j, max_tool_speed=1.0, max_tool_angular_speed=2.0)
+    np.testing.assert_array_equal(out['max_velocity'], [0.5, 1.0])
+    np.testing.assert_array_equal(out['max_acceleration'], [1.0, 2.0])
+    np.testing.assert_array_equal(out['max_jerk'], [2.0, 4.0])
+    assert out['max_tool_speed'] == 0.5 and out['max_tool_angular_speed'] == 1.0
+    out = scaled_limits(v, a, 1.0, 0.5, 0.25)
+    np.testing.assert_array_equal(out['max_velocity'], [0.5, 1.0])
+    np.testing.assert_array_equal(out['max_acceleration'], [1.0, 2.0])
+    assert set(out) == {'max_velocity', 'max_acceleration'}
