@@ -60,7 +60,7 @@ from ..core.errors import GeodesicPlannerError, RequestError
 if TYPE_CHECKING:
     from ..core.kinematics import Chain
     from ..core.path import JointPath
-    from ..io.requests import PlanRequest
+    from ..core.request import PlanRequest
     from ..timing.trajectory import Trajectory
 
 #: 13-point central stencil offsets used for end-effector derivatives.

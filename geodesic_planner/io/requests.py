@@ -23,74 +23,25 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import yaml
 
 from ..core.errors import RequestError
 from ..core.kinematics import Chain
-from ..core.motions import MotionItem, plan_sequence
-from ..core.planner import GeodesicPlanner, check_method
-from ..core.ptp import MassModel, mass_from_urdf
+from ..core.motions import MotionItem
+from ..core.planner import check_method
+from ..core.ptp import mass_from_urdf
+from ..core.request import PlanRequest
 from ..core.robots import load_robot
 from ..core.transforms import pose_from_mapping
-
-if TYPE_CHECKING:
-    from ..core.blend import BlendedPath
-    from ..core.geodesic import GeodesicPath
-    from ..core.piecewise import PiecewiseGeodesicPath
 
 KNOWN_KEYS = {'robot', 'metric', 'position_weight', 'orientation_weight', 'epsilon', 'start', 'goal',
               'start_joints', 'goal_joints', 'via', 'tolerance', 'base_link', 'tip_link', 'description',
               'method', 'blend_radius', 'sequence'}
 #: Keys of a sequence item.
 ITEM_KEYS = {'motion', 'goal', 'goal_joints', 'interim', 'center', 'ptp', 'blend_radius'}
-
-
-@dataclass
-class PlanRequest:
-    """A parsed, validated planning request."""
-
-    robot: Chain
-    start: np.ndarray | None
-    goal: np.ndarray | None
-    start_joints: np.ndarray | None = None
-    goal_joints: np.ndarray | None = None
-    via: list[np.ndarray] = field(default_factory=list)
-    tolerance: float | None = None
-    planner_options: dict[str, Any] = field(default_factory=dict)
-    method: str = 'auto'
-    blend_radius: float = 0.0
-    items: list[MotionItem] = field(default_factory=list)
-    mass: MassModel | None = None
-
-    def planner(self) -> GeodesicPlanner:
-        """A planner for this request's robot and metric options."""
-        return GeodesicPlanner(self.robot, **self.planner_options)
-
-    def plan(self, planner: GeodesicPlanner | None = None, *,
-             start_seed: np.ndarray | None = None
-             ) -> GeodesicPath | PiecewiseGeodesicPath | BlendedPath:
-        """Plan it: a geodesic, or a piecewise geodesic when via points are given (blended at the
-        via points when ``blend_radius`` > 0).
-
-        ``start_seed`` (dof,) seeds the start pose's IK (e.g. the robot's current joint state).
-        """
-        planner = planner or self.planner()
-        if self.items:
-            return plan_sequence(planner, self.items, start=self.start,  # type: ignore[return-value]
-                                 start_joints=self.start_joints, tolerance=self.tolerance,
-                                 start_seed=start_seed, mass=self.mass)
-        if self.via:
-            if self.goal is None:
-                raise RequestError('via points need a goal pose (goal_joints cannot end a via sequence)')
-            return planner.plan_through([self.start, *self.via, self.goal], self.start_joints,
-                                        tolerance=self.tolerance, start_seed=start_seed,
-                                        method=self.method, blend_radius=self.blend_radius)
-        return planner.plan(self.start, self.goal, self.start_joints, self.goal_joints,
-                            tolerance=self.tolerance, start_seed=start_seed, method=self.method)
 
 
 def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
@@ -151,8 +102,11 @@ def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
                 with open(robot_ref, encoding='utf-8') as fh:
                     urdf = fh.read()
             req.mass = mass_from_urdf(robot, urdf)[0]
-    elif req.goal is None and req.goal_joints is None:
-        raise RequestError('request: give goal (a Pose) or goal_joints')
+    else:
+        try:
+            req.check()
+        except RequestError as err:
+            raise RequestError(f'request: {err}') from err
     return req
 
 

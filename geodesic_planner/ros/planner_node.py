@@ -98,7 +98,7 @@ from visualization_msgs.msg import MarkerArray
 
 from ..core.collision import CollisionModel
 from ..core.errors import GeodesicPlannerError, quoted
-from ..io.requests import PlanRequest
+from ..core.request import PlanRequest
 from . import params, runtime
 from .admission import PlanQueue, PlanWorker, WorkerBusyError
 from .diagnostics import NodeStatus

@@ -45,7 +45,7 @@ from ..core.path import JointPath
 from ..core.robots import is_urdf_path
 from ..io.collision_setup import collision_for_parameters
 from ..io.joint_limits import merge_limits
-from ..io.requests import PlanRequest
+from ..core.request import PlanRequest
 from ..timing.law import scaled_limits
 from ..timing.resample import MAX_POINTS, sample_count
 from ..timing.validate import trajectory_problems
@@ -352,16 +352,13 @@ def plan_trajectory_request(config: PlannerConfig, msg: PlanTrajectory.Request
 
     start, start_joints = end(msg.start, msg.start_joints, 'start')
     goal, goal_joints = end(msg.goal, msg.goal_joints, 'goal')
-    if goal is None and goal_joints is None:
-        raise RequestError('goal: give a goal pose (frame_id empty or the base frame) or goal_joints')
     if len(msg.via_poses) > MAX_VIA_POSES:
         raise RequestError(f'via_poses: {len(msg.via_poses)} poses, more than {MAX_VIA_POSES}')
     via = [cv.pose_stamped_to_matrix(v, config.frame_id, f'via_poses[{i}]')
            for i, v in enumerate(msg.via_poses)]
-    if via and goal is None:
-        raise RequestError('via_poses: a via sequence must end at a goal pose, not goal_joints')
     request = PlanRequest(config.robot, start, goal, start_joints, goal_joints, via,
                           blend_radius=blend_radius)
+    request.check()
     return (request, _factor(msg.velocity_scaling_factor, 'velocity_scaling_factor'),
             _factor(msg.acceleration_scaling_factor, 'acceleration_scaling_factor'))
 

@@ -22,7 +22,7 @@ from ..core.errors import RequestError
 from ..core.motions import MOTION_TYPES, MotionItem
 from ..core.ptp import MassModel, mass_from_urdf
 from ..core.robots import is_urdf_path, read_urdf_file
-from ..io.requests import PlanRequest
+from ..core.request import PlanRequest
 from . import conversions as cv
 
 __all__ = ['MAX_ITEMS', 'SequenceService', 'sequence_request']
