@@ -21,7 +21,7 @@ q(s) never changes, only s(t).
    largest ratios. ``c`` is chosen by a coarse scan and golden-section search for the shortest
    duration ``lambda(c) * sum(T* + c w_ref)``. If the best law still needs a stretch above
    LOCAL_TRIGGER, the optimal profile is capped near the samples over a limit and filtered again
-   with the same window (:func:`.smoothing.local_cap`), keeping the shortest law. When the jerk
+   with the same window (:func:`.checks.local_cap`), keeping the shortest law. When the jerk
    binds and the optimal profile runs far above the cruise cap of the jerk rows (:func:`cruise_cap`,
    ``x <= (jmax / |q'''|)^(2/3)``: what a blend's third derivative allows), the search runs
    under that cap instead. When the jerk
@@ -46,7 +46,7 @@ from ._arrays import clip
 from .law import final_duration
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
-from .smoothing import local_cap, peak_samples
+from .checks import local_cap, peak_samples
 from .tuning import CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS, TOPP_MARGIN
 from .tool import ToolRows, tool_rows
 from .topp import topp

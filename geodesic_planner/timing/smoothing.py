@@ -40,8 +40,8 @@ from .law import final_duration
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
 from .tool import ToolRows, tool_rows
-from .tuning import (CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_MARGIN, LOCAL_PASSES, PEAK_CHECKS,
-                     PEAK_SAMPLES, S_UNIFORM_CHECKS, TOPP_MARGIN)
+from .checks import distinct_times, local_cap, peak_samples
+from .tuning import (CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS, TOPP_MARGIN)
 from .topp import topp
 from .trajectory import Trajectory
 
@@ -52,12 +52,11 @@ LOCAL_TRIGGER = 1.01
 #: peak speed on both sides; the kernel of a piece with k deep valleys is (1 + k) times narrower
 #: (its ramps take ``smoothing`` of the time between valleys, as between rests).
 VALLEY_DEPTH = 0.5
-#: The cap of a local pass covers the path the law crosses within LOCAL_WINDOW * tau of each
-#: offending sample, and divides x there by the sample's speed factor ** LOCAL_POWER (narrow and
-#: gentle, repeated, slows the least: on the blends of benchmarks/blends.py windows of 1, 0.5 and
-#: 0.25 tau gave 2.579, 2.503 and 2.478 s on ur5e at r = 3 cm; 0.1 tau was erratic).
+#: The cap of a local pass (:func:`.checks.local_cap`) covers the path the law crosses within
+#: LOCAL_WINDOW * tau of each offending sample (narrow and gentle, repeated, slows the least: on
+#: the blends of benchmarks/blends.py windows of 1, 0.5 and 0.25 tau gave 2.579, 2.503 and 2.478 s
+#: on ur5e at r = 3 cm; 0.1 tau was erratic).
 LOCAL_WINDOW = 0.25
-LOCAL_POWER = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -404,47 +403,6 @@ class LimitCheck:
     need: np.ndarray       # (M,) speed factor over the limits at each (interpolated path derivatives)
 
 
-def local_cap(s_nodes: np.ndarray, x: np.ndarray, law: object, t: np.ndarray, need: np.ndarray,
-              window: float, cap: np.ndarray | None) -> np.ndarray:
-    """A cap on x = sdot^2 (per node of ``s_nodes``) that slows the optimal profile ``x`` where
-    a filtered law exceeded a limit: over the path the law crosses within ``window`` (s of time)
-    of each sample with ``need`` > 1 + LOCAL_MARGIN (its speed factor over the limits), x is
-    divided by that factor (``LOCAL_POWER``), LOCAL_MARGIN below; ``cap``: the previous cap.
-
-    ``law.evaluate(t)`` must return s first (the smoothed and the box-filtered laws do).
-    """
-    out = np.full(s_nodes.size, np.inf) if cap is None else np.array(cap, dtype=float)
-    bad = np.flatnonzero(need > 1.0 + LOCAL_MARGIN)
-    if bad.size == 0:
-        return out
-    tb = t[bad]
-    s_lo = law.evaluate(tb - window, jerk=False)[0]        # type: ignore[attr-defined]
-    s_hi = law.evaluate(tb + window, jerk=False)[0]        # type: ignore[attr-defined]
-    lo = np.searchsorted(s_nodes, s_lo, side='left')
-    hi = np.searchsorted(s_nodes, s_hi, side='right')
-    factor = np.ones(s_nodes.size)
-    for a, b, f in zip(lo.tolist(), hi.tolist(), need[bad].tolist()):
-        np.maximum(factor[a:b], f, out=factor[a:b])
-    return np.minimum(out, x / factor**LOCAL_POWER * (1.0 - LOCAL_MARGIN))
-
-
-def peak_samples(t: np.ndarray, need: np.ndarray, spacing: float, duration: float) -> np.ndarray:
-    """More check times (sorted) around the PEAK_CHECKS highest local peaks of ``need`` at sorted
-    times ``t``: PEAK_SAMPLES within ``spacing`` on either side of each, in [0, duration]."""
-    peak = np.flatnonzero((need[1:-1] >= need[:-2]) & (need[1:-1] >= need[2:])) + 1
-    if not peak.size:
-        return np.zeros(0)
-    peak = peak[np.argsort(need[peak])[-PEAK_CHECKS:]]
-    offsets = np.linspace(-spacing, spacing, PEAK_SAMPLES + 2)[1:-1]
-    return np.sort(np.clip((t[peak][:, None] + offsets).reshape(-1), 0.0, duration))
-
-
-def _distinct(t: np.ndarray) -> np.ndarray:
-    """Times sorted, each once (from sorted runs: a cheap stable sort)."""
-    t = t[np.argsort(t, kind='stable')]
-    return t[np.concatenate([[True], t[1:] > t[:-1]])]
-
-
 def _ratios(ps: PathSamples, law: PiecewiseLaw, t: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
             tool: ToolRows | None) -> tuple[np.ndarray, ...]:
     """At sorted times t (M,): s, sdot, sddot and the largest velocity and acceleration ratios
@@ -481,7 +439,7 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
         t_chk = np.union1d(t_chk, law.t_offsets)
     # Also samples about uniform in s: a long law can cross a stretch of the path in a fraction
     # of its duration, where samples uniform in t are sparse.
-    t_chk = _distinct(np.concatenate([t_chk, law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS))]))
+    t_chk = distinct_times(np.concatenate([t_chk, law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS))]))
     s, sd, sdd, rv_t, ra_t = _ratios(ps, law, t_chk, vmax, amax, tool)
     # Around the highest local peaks, samples at a quarter of the uniform spacing.
     need = np.maximum(rv_t, np.sqrt(ra_t))
@@ -519,4 +477,4 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
 
 
 __all__ = ['LOCAL_TRIGGER', 'PiecewiseLaw',
-           'SmoothRestToRest', 'build_piecewise_law', 'local_cap', 'peak_samples']
+           'SmoothRestToRest', 'build_piecewise_law']

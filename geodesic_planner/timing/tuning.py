@@ -5,8 +5,8 @@ One place for the numbers every law that samples its result uses (:mod:`.smoothi
 """
 from __future__ import annotations
 
-__all__ = ['CHECK_MARGIN', 'CHECK_SAMPLES', 'EXACT_CHECKS', 'LOCAL_MARGIN', 'LOCAL_PASSES', 'PEAK_CHECKS',
-           'PEAK_SAMPLES', 'S_UNIFORM_CHECKS', 'TOPP_MARGIN']
+__all__ = ['CHECK_MARGIN', 'CHECK_SAMPLES', 'EXACT_CHECKS', 'LOCAL_MARGIN', 'LOCAL_PASSES', 'LOCAL_POWER',
+           'PEAK_CHECKS', 'PEAK_SAMPLES', 'S_UNIFORM_CHECKS', 'TOPP_MARGIN']
 
 #: Relative margin kept below the limits (TOPP uses limits * (1 - TOPP_MARGIN)).
 TOPP_MARGIN = 1e-3
@@ -26,3 +26,6 @@ PEAK_SAMPLES = 8
 #: limit, LOCAL_MARGIN below it.
 LOCAL_PASSES = 8
 LOCAL_MARGIN = 0.01
+#: A local pass divides x by the offending sample's speed factor ** LOCAL_POWER (narrow and
+#: gentle, repeated, slows the least; see smoothing.LOCAL_WINDOW).
+LOCAL_POWER = 1.0
