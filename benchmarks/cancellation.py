@@ -32,7 +32,8 @@ from geometry_msgs.msg import PoseStamped
 from geodesic_planner import GeodesicPlanner, load_robot
 from geodesic_planner.core.cancel import Cancelled, CancelToken, cancellable
 from geodesic_planner.ros import params
-from geodesic_planner.ros.planning import build_config, compute_plan, plan_trajectory_request
+from geodesic_planner.ros.planning import build_config, compute_plan
+from geodesic_planner.ros.service_requests import plan_trajectory_request
 
 from blends import sequences  # benchmarks/ is the script's directory
 from run import machine

@@ -318,6 +318,7 @@ def breakdown(robot: str, n: int) -> dict[str, float]:
     """Median stage times (ms) of the node's compute_plan in this process, no ROS transport."""
     from geodesic_planner.ros import params
     from geodesic_planner.ros import planning as pn
+    from geodesic_planner.ros.service_requests import get_plan_request
 
     values = params.defaults(params.PLANNER_PARAMETERS)
     values['robot'] = robot
@@ -326,7 +327,7 @@ def breakdown(robot: str, n: int) -> dict[str, float]:
     stages: dict[str, list[float]] = {}
     for i, req in enumerate(reqs):
         t0 = time.perf_counter()
-        res = pn.compute_plan(config, pn.get_plan_request(config, req), None)
+        res = pn.compute_plan(config, get_plan_request(config, req), None)
         total = (time.perf_counter() - t0) * 1e3
         if i >= 3:
             for k, v in {**res.stage_ms, 'total': total}.items():

@@ -20,9 +20,8 @@ Along a motion (:meth:`CollisionModel.check_motion`) the check is conservative. 
 on segment k moves at most ``sum_j |dq_j/dt| * reach_jk`` (m/s), where ``reach_jk`` bounds the
 distance of the body from joint j's axis by the segment lengths (triangle inequality, independent
 of the configuration). A pair's distance therefore changes at most at the sum of its two bodies'
-speeds ``R``; an interval [a, b] is clear when ``d(a) + d(b) - R (b - a) > 2 padding``, and an
-interval that is not is bisected. So a thin plate between two checks is caught; the motion is
-refused where a distance comes within :data:`RESOLUTION` of the padding.
+speeds ``R``; an interval [a, b] is clear when ``d(a) + d(b) - R (b - a) > 2 padding``, else it
+is bisected: a thin plate between two checks is caught; refused within :data:`RESOLUTION` of it.
 """
 from __future__ import annotations
 

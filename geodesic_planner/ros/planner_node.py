@@ -2,15 +2,12 @@
 
 Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default):
 
-* service ``~/plan_trajectory`` (geodesic_planner_interfaces/srv/PlanTrajectory): start (pose,
-  joints, or unset = the current joint state), goal (pose or joints), via poses, ``blend_radius``
-  (m; > 0: pass the via poses without stopping), scaling factors and ``execute``; the reply
-  carries the PlanErrorCode (:data:`~.planning.ERROR_CODES` maps each library error class to
-  one), the reason, the trajectory, the tool path, the solver's figures, the blend deviations and
-  the fraction of the straight line that can be followed (1 on success; where a singularity, a
-  joint limit or an unreachable pose stops the line, the fraction up to it, named in the reason).
-  Plan-only unless ``execute`` is true. With a joint state known, an explicit start is solved
-  seeded from it and refused (START_STATE_MISMATCH) beyond ``allowed_start_tolerance``.
+* service ``~/plan_trajectory`` (PlanTrajectory.srv documents every field): start (pose, joints,
+  or unset = the current joint state), goal, via poses, ``blend_radius``, scaling factors and
+  ``execute``; the reply: the PlanErrorCode (:data:`~.planning.ERROR_CODES`), the reason, the
+  trajectory, the tool path, the solver's figures, the blend deviations, the followable
+  ``fraction`` of the line. With a joint state known, an explicit start is solved seeded from it
+  and refused (START_STATE_MISMATCH) beyond ``allowed_start_tolerance``.
 * service ``~/plan_sequence`` (PlanSequence): LIN, CIRC and PTP items with blends, one
   trajectory (:mod:`~geodesic_planner.ros.sequence_service`).
 * service ``~/plan`` (nav_msgs/srv/GetPlan, compatibility; every success is published, no
@@ -41,8 +38,7 @@ at run time (the model is reloaded); to change the robot and ``joint_names`` tog
 ``set_parameters_atomically`` (the per-parameter service checks each change against the others'
 current values). Invalid values at start: one ``cannot start: ...`` error line and exit code 1.
 
-Timing and the pipeline (parameters -> configuration, request -> messages):
-:mod:`geodesic_planner.ros.planning`.
+The pipeline (parameters -> configuration, request -> messages): :mod:`geodesic_planner.ros.planning`.
 
 Executor model, on rclpy's public API: a MultiThreadedExecutor spun by the main thread, with
 ``max_queued_requests + 3`` threads, serves both plan services in a ReentrantCallbackGroup and
@@ -51,23 +47,16 @@ the parameter services (the node's default group: a parameter change never waits
 Queue and overload (:class:`~geodesic_planner.ros.admission.PlanQueue`): at most
 ``max_queued_requests`` requests wait or plan, one plan at a time in arrival order; one more is
 answered at once (PLANNING_FAILED, "planner overloaded", counted on /diagnostics); one that waits
-longer than ``plan_timeout`` is answered TIMED_OUT. Services are reliable KEEP_ALL (clients should
-be too), so every request the node takes is answered (``docs/reliability.md``).
-``/joint_states`` is taken
-by a hidden node (``_geodesic_planner_joint_states``) spun by an ``rclpy.experimental.EventsExecutor``
-in a thread of its own, so a state message never waits behind a plan either. The latest state is
-an immutable tuple swapped atomically; the configuration (robot, planner, limits) is an
-immutable :class:`~geodesic_planner.ros.planning.PlannerConfig` that a request reads once at its
-start; a parameter change builds a new one (or rejects it with a reason) under a lock.
-
-Why this split: ``docs/benchmarks.md``, "Node on stock rclpy" (state messages on the
-MultiThreadedExecutor cost 178 ms of node CPU per plan).
+longer than ``plan_timeout`` is answered TIMED_OUT. Services are reliable KEEP_ALL, so every
+request the node takes is answered (``docs/reliability.md``). ``/joint_states`` is taken off the
+plan path (:mod:`~geodesic_planner.ros.joint_states`; why: ``docs/benchmarks.md``, "Node on stock
+rclpy"). The configuration is an immutable :class:`~geodesic_planner.ros.planning.PlannerConfig`
+that a request reads once at its start; a parameter change builds a new one under a lock.
 
 Bounded time (:class:`~geodesic_planner.ros.admission.PlanWorker`): a plan still computing after
-``plan_timeout`` is answered TIMED_OUT at once and cancelled (:mod:`geodesic_planner.core.cancel`);
-it is never published; the next plan waits for it to stop (at most ``CANCEL_WAIT`` s), then gets
-its own whole ``plan_timeout``.
-``kill -USR1 <pid>`` dumps every thread's stack to stderr (faulthandler).
+``plan_timeout`` is answered TIMED_OUT at once, cancelled (:mod:`geodesic_planner.core.cancel`) and
+never published; the next plan waits for it to stop (at most ``CANCEL_WAIT`` s), then gets its own
+whole ``plan_timeout``. ``kill -USR1 <pid>`` dumps every thread's stack to stderr (faulthandler).
 """
 from __future__ import annotations
 
@@ -108,8 +97,8 @@ from .joint_states import JointStateListener, RateLimitedWarnings
 from .scene_services import SceneServices
 from .sequence_service import SequenceService
 from .planning import (CODE_NAMES, ConfigError, PlannerConfig, PlanResult, PlanTimeoutError,
-                       build_config, compute_plan, error_code, get_plan_request,
-                       plan_trajectory_request)
+                       build_config, compute_plan, error_code)
+from .service_requests import get_plan_request, plan_trajectory_request
 
 NODE_NAME = 'geodesic_planner'
 #: Longest wait of a plan for an abandoned one to stop, s (its cancellation checkpoints stop it

@@ -24,6 +24,7 @@ from ..core.ptp import MassModel, mass_from_urdf
 from ..core.robots import is_urdf_path, read_urdf_file
 from ..core.request import PlanRequest
 from . import conversions as cv
+from .service_requests import request_factor
 
 __all__ = ['MAX_ITEMS', 'SequenceService', 'sequence_request']
 
@@ -65,8 +66,6 @@ def sequence_request(config: Any, msg: PlanSequence.Request, mass: MassModel | N
         RequestError: no items or too many, a malformed item (named by its index), both a start
             pose and start joints, a factor outside [0, 1]; FrameError: not the base frame.
     """
-    from .planning import _factor
-
     if not msg.items:
         raise RequestError('items: the sequence has no items')
     if len(msg.items) > MAX_ITEMS:
@@ -80,8 +79,8 @@ def sequence_request(config: Any, msg: PlanSequence.Request, mass: MassModel | N
         start = cv.pose_stamped_to_matrix(msg.start, config.frame_id, 'start')
     items = [_item(config, it, i) for i, it in enumerate(msg.items)]
     request = PlanRequest(config.robot, start, None, start_joints, None, items=items, mass=mass)
-    return (request, _factor(msg.velocity_scaling_factor, 'velocity_scaling_factor'),
-            _factor(msg.acceleration_scaling_factor, 'acceleration_scaling_factor'))
+    return (request, request_factor(msg.velocity_scaling_factor, 'velocity_scaling_factor'),
+            request_factor(msg.acceleration_scaling_factor, 'acceleration_scaling_factor'))
 
 
 class SequenceService:

@@ -21,19 +21,16 @@ q(s) never changes, only s(t).
    largest ratios. ``c`` is chosen by a coarse scan and golden-section search for the shortest
    duration ``lambda(c) * sum(T* + c w_ref)``. If the best law still needs a stretch above
    LOCAL_TRIGGER, the optimal profile is capped near the samples over a limit and filtered again
-   with the same window (:func:`.checks.local_cap`), keeping the shortest law. When the jerk
-   binds and the optimal profile runs far above the cruise cap of the jerk rows (:func:`cruise_cap`,
-   ``x <= (jmax / |q'''|)^(2/3)``: what a blend's third derivative allows), the search runs
-   under that cap instead. When the jerk
-   binds (the result is more than LOOSE times the v/a-optimal duration), the optimal pass is
-   repeated with the acceleration limits scaled by ACCEL_SCALES, keeping the shortest law: gentler
-   accelerations allow gentler ramps (on a line where amax is not reached the 7-segment optimum
-   peaks at sqrt(vmax jmax)).
+   with the same window (:func:`.checks.local_cap`), keeping the shortest law. Where the optimal
+   profile runs far above the cruise cap of the jerk rows (:func:`cruise_cap`, ``x <=
+   (jmax / |q'''|)^(2/3)``: what a blend's third derivative allows), the search runs under that
+   cap. When the jerk binds (over LOOSE times the v/a optimum), the optimal pass is repeated with
+   the acceleration limits scaled by ACCEL_SCALES, keeping the shortest law (gentler
+   accelerations allow gentler ramps: the 7-segment optimum peaks at sqrt(vmax jmax)).
 4. ``duration=`` stretches the law uniformly (never shorter than the minimum).
 """
 from __future__ import annotations
 
-import functools
 import itertools
 import math
 from dataclasses import dataclass, field
@@ -58,13 +55,11 @@ SEARCH_SAMPLES = 250
 #: Width factors of the coarse scan (times the reference width), then golden-section steps.
 WIDTH_SCAN = (0.5, 0.71, 1.0, 1.41, 2.0, 2.83, 4.0)
 GOLDEN_STEPS = 5
-#: Scales of the acceleration limits of the time-optimal pass tried, in order, when the jerk
-#: binds (the duration exceeds LOOSE times the v/a-optimal one); the search stops at the first
-#: scale that does not shorten the law (lower accelerations allow longer, gentler ramps).
+#: Acceleration scales of the optimal pass tried in order when the jerk binds (over LOOSE times
+#: the v/a optimum), until one does not shorten the law.
 ACCEL_SCALES = (0.7, 0.5, 0.35, 0.25)
 LOOSE = 1.1
-#: Local slow-down passes (:func:`_local_passes`) run when the best law still needs a uniform
-#: stretch above this (a dip of the optimal speed the filter cannot follow, e.g. a blend).
+#: Local slow-down passes (:func:`_local_passes`) run above this stretch (a dip the filter cannot follow).
 LOCAL_TRIGGER = 1.1
 #: The search under the cruise cap of the jerk rows runs when that cap is below this fraction of
 #: the v/a-optimal x somewhere (0.03-0.07 at blends; 0.65 or more on the single moves measured).
@@ -198,31 +193,6 @@ def build_box_law(pieces: list[tuple[float, StarPiece]], width: np.ndarray) -> B
                   np.concatenate([[0.0], np.cumsum(durations)]))
 
 
-def third_derivative_coefficients(ps: PathSamples) -> np.ndarray:
-    """Per step, ``q''' = d0 + r (d1 + r d2)`` in ``r = s - s_k``: (3, dof, n).
-
-    The derivative of the cubic Hermite of q'' (values q'', slopes q''' at both ends of a step).
-    """
-    h = np.diff(ps.s)
-    v0, m0, v1, m1 = ps.bR[:-1].T, ps.cR[:-1].T, ps.bL[1:].T, ps.cL[1:].T
-    slope = (v1 - v0) / h
-    return np.stack([m0, 2.0 * (3.0 * slope - 2.0 * m0 - m1) / h, 3.0 * (m0 + m1 - 2.0 * slope) / (h * h)])
-
-
-def _third_derivative_t(ps: PathSamples, coef: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """q''' at sorted ``s`` (M,) from :func:`third_derivative_coefficients`; (dof, M)."""
-    n = ps.s.size - 1
-    k = clip(np.searchsorted(ps.s, s, side='right') - 1, 0, n - 1)
-    counts = np.bincount(k, minlength=n)
-    r = s - ps.s[k]
-    out = np.repeat(coef[2], counts, axis=1)
-    out *= r
-    out += np.repeat(coef[1], counts, axis=1)
-    out *= r
-    out += np.repeat(coef[0], counts, axis=1)
-    return out
-
-
 def _crossing_times(law: BoxLaw, t: np.ndarray, s: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Times at which the (monotone) law passes ``targets``: bracketed on samples, then Newton."""
     j = clip(np.searchsorted(s, targets), 1, s.size - 1)
@@ -247,11 +217,6 @@ class _Checker:
     check_samples: int | None
     # The last law's dense grid (the local passes check a law, then ask where it is over).
     _last: list[object] = field(default_factory=list, repr=False)
-
-    @functools.cached_property
-    def coef3(self) -> np.ndarray:
-        """Coefficients of q''' per step of ``ps`` (:func:`third_derivative_coefficients`)."""
-        return third_derivative_coefficients(self.ps)
 
     def stretch(self, law: BoxLaw, exact: bool = False) -> float:
         """Smallest uniform time stretch (>= 1) keeping ``law`` within 1 - CHECK_MARGIN of every
@@ -293,7 +258,7 @@ class _Checker:
             s, sd, sdd, sddd = law.evaluate(t)
             assert sddd is not None
             a, b = ps.interpolate_t(s)
-            c = _third_derivative_t(ps, self.coef3, s)
+            c = ps.third_derivative_t(s)
             rv_t = (np.abs(a * sd) / vmax[:, None]).max(axis=0)
             ra_t = (np.abs(a * sdd + b * sd**2) / amax[:, None]).max(axis=0)
             rj_t = (np.abs(a * sddd + 3.0 * b * (sd * sdd) + c * sd**3) / jmax[:, None]).max(axis=0)

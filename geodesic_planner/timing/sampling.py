@@ -90,6 +90,29 @@ class PathSamples:
             rows += [v0, m0, (3.0 * slope - 2.0 * m0 - m1) / h, (m0 + m1 - 2.0 * slope) / (h * h)]
         return np.ascontiguousarray(np.stack(rows))
 
+    @functools.cached_property
+    def _coef3(self) -> np.ndarray:
+        """Per step, ``q''' = d0 + r (d1 + r d2)`` in ``r = s - s_k``: (3, dof, n), the derivative
+        of the cubic Hermite of q'' (values q'', slopes q''' at both ends of a step)."""
+        h = np.diff(self.s)
+        v0, m0, v1, m1 = self.bR[:-1].T, self.cR[:-1].T, self.bL[1:].T, self.cL[1:].T
+        slope = (v1 - v0) / h
+        return np.stack([m0, 2.0 * (3.0 * slope - 2.0 * m0 - m1) / h, 3.0 * (m0 + m1 - 2.0 * slope) / (h * h)])
+
+    def third_derivative_t(self, s: np.ndarray) -> np.ndarray:
+        """q''' at sorted ``s`` (M,), consistent with :meth:`interpolate_t`'s q''; (dof, M)."""
+        coef = self._coef3
+        n = self.s.size - 1
+        k = clip(np.searchsorted(self.s, s, side='right') - 1, 0, n - 1)
+        counts = np.bincount(k, minlength=n)
+        r = s - self.s[k]
+        out = np.repeat(coef[2], counts, axis=1)
+        out *= r
+        out += np.repeat(coef[1], counts, axis=1)
+        out *= r
+        out += np.repeat(coef[0], counts, axis=1)
+        return out
+
     def interpolate_t(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First and second derivatives at ``s`` (M,), transposed: each (dof, M).
 
