@@ -100,6 +100,18 @@ def is_urdf_path(robot: str) -> bool:
     return robot.endswith('.urdf') or os.sep in robot
 
 
+def urdf_text(robot: str, robot_description: str = '') -> str | None:
+    """The URDF a model comes from: ``robot_description`` when not empty, else the file ``robot``
+    names (:func:`is_urdf_path`), else None (a preset).
+
+    Raises:
+        RequestError: the file cannot be read (:func:`read_urdf_file`).
+    """
+    if robot_description.strip():
+        return robot_description
+    return read_urdf_file(robot) if is_urdf_path(robot) else None
+
+
 def read_urdf_file(path: str, *, param: str = 'robot', kind: str = 'URDF') -> str:
     """The text of a URDF file (or an SRDF: ``param``, ``kind`` name it in the errors): a regular
     file (never a FIFO or device) of bounded size, UTF-8.

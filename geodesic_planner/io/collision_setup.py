@@ -13,7 +13,7 @@ from typing import Any
 from ..core.collision import CollisionModel
 from ..core.errors import RequestError, quoted
 from ..core.kinematics import Chain
-from ..core.robots import is_urdf_path, read_urdf_file
+from ..core.robots import read_urdf_file, urdf_text
 
 
 def package_dirs(given: Sequence[str] = ()) -> list[str]:
@@ -80,8 +80,7 @@ def collision_for_parameters(values: Mapping[str, Any], robot: Chain, robot_key:
     key = robot_key + tuple(str(values[k]) for k in PARAMETERS)
     if previous is not None and previous_key == key:
         return previous, key
-    description, source = str(values['robot_description']), str(values['robot'])
-    urdf = description if description.strip() else (read_urdf_file(source) if is_urdf_path(source) else None)
+    urdf = urdf_text(str(values['robot']), str(values['robot_description']))
     model = collision_model(
         robot, urdf, srdf=str(values['srdf']), packages=list(values['package_dirs'] or ()),
         padding=float(values['collision_padding']), link_radius=float(values['link_radius']),

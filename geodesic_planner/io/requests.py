@@ -34,7 +34,7 @@ from ..core.motions import MotionItem
 from ..core.planner import check_method
 from ..core.ptp import mass_from_urdf
 from ..core.request import PlanRequest
-from ..core.robots import load_robot
+from ..core.robots import load_robot, urdf_text
 from ..core.transforms import pose_from_mapping
 
 KNOWN_KEYS = {'robot', 'metric', 'position_weight', 'orientation_weight', 'epsilon', 'start', 'goal',
@@ -97,11 +97,7 @@ def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
             raise RequestError('request: a sequence replaces goal, goal_joints and via (give one or the other)')
         req.items = parse_items(data['sequence'], robot)
         if any(it.motion == 'PTP' and it.ptp == 'kinetic_energy' for it in req.items):
-            urdf = None
-            if robot_ref.endswith('.urdf'):
-                with open(robot_ref, encoding='utf-8') as fh:
-                    urdf = fh.read()
-            req.mass = mass_from_urdf(robot, urdf)[0]
+            req.mass = mass_from_urdf(robot, urdf_text(robot_ref))[0]
     else:
         try:
             req.check()

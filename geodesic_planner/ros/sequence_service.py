@@ -21,7 +21,7 @@ from geodesic_planner_interfaces.srv import PlanSequence
 from ..core.errors import RequestError
 from ..core.motions import MOTION_TYPES, MotionItem
 from ..core.ptp import MassModel, mass_from_urdf
-from ..core.robots import is_urdf_path, read_urdf_file
+from ..core.robots import urdf_text
 from ..core.request import PlanRequest
 from . import conversions as cv
 from .service_requests import request_factor
@@ -96,9 +96,7 @@ class SequenceService:
         """The URDF's mass model for the configuration's robot (remembered per robot key)."""
         key = config.robot_key
         if self._mass[0] != key:
-            source, description = key[0], key[1]
-            urdf = description if description.strip() else (read_urdf_file(source) if is_urdf_path(source) else None)
-            self._mass = (key, mass_from_urdf(config.robot, urdf)[0])
+            self._mass = (key, mass_from_urdf(config.robot, urdf_text(key[0], key[1]))[0])
         return self._mass[1]
 
     def _on_request(self, request: PlanSequence.Request, response: PlanSequence.Response) -> PlanSequence.Response:
