@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .plotting import DPI, _figure, _suptitle
+from .plotting import _figure, save_png
 
 __all__ = ['BoxTrace', 'plot_collision']
 
@@ -73,6 +73,4 @@ def plot_collision(path: str | os.PathLike[str], arm: np.ndarray, tool: np.ndarr
     for ax in (ax_xy, ax_d):
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc='best')
-    _suptitle(fig, title)
-    fig.savefig(os.fspath(path), dpi=DPI, bbox_inches='tight', pad_inches=0.05)
-    return os.fspath(path)
+    return save_png(fig, path, title)

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .plotting import DPI, T_LABEL, _figure, _suptitle
+from .plotting import _figure, save_png, tool_path_and_speed_axes
 
 __all__ = ['plot_ptp_comparison', 'plot_sequence']
 
@@ -44,19 +44,10 @@ def plot_sequence(path: str | os.PathLike[str], t: np.ndarray, tool: np.ndarray,
         mid = 0.5 * (goals[k] + goals[k + 1])
         ax_xy.annotate(name, mid[:2], fontsize=8, color='0.3')
     ax_v.plot(t, speed, color='C0', lw=1.6, label='tool speed')
-    ax_xy.set_aspect('equal', adjustable='datalim')
-    ax_xy.set_xlabel(r'tool $x$ (m)')
-    ax_xy.set_ylabel(r'tool $y$ (m)')
-    ax_xy.set_title('tool path (xy plane, base frame)', fontsize=9)
-    ax_v.set_xlabel(T_LABEL)
-    ax_v.set_ylabel(r'tool speed $|v|$ (m/s)')
-    ax_v.set_title('tool speed: no stop inside the blends', fontsize=9)
+    tool_path_and_speed_axes(ax_xy, ax_v, 'tool speed: no stop inside the blends')
     for ax in (ax_xy, ax_v):
-        ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc='best')
-    _suptitle(fig, title)
-    fig.savefig(os.fspath(path), dpi=DPI, bbox_inches='tight', pad_inches=0.05)
-    return os.fspath(path)
+    return save_png(fig, path, title)
 
 
 def plot_ptp_comparison(path: str | os.PathLike[str],
@@ -94,6 +85,4 @@ def plot_ptp_comparison(path: str | os.PathLike[str],
     for ax in (ax_q, ax_e):          # legends below the axes: never over a curve
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc='upper center', bbox_to_anchor=(0.5, -0.16), ncol=2)
-    _suptitle(fig, title)
-    fig.savefig(os.fspath(path), dpi=DPI, bbox_inches='tight', pad_inches=0.05)
-    return os.fspath(path)
+    return save_png(fig, path, title)

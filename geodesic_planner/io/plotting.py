@@ -37,11 +37,31 @@ def _figure(figsize: tuple[float, float]) -> Figure:
     return fig
 
 
+def save_png(fig: Figure, path: str | os.PathLike[str], title: str = '') -> str:
+    """Write ``fig`` to ``path`` at :data:`DPI` (legends outside the axes included), with ``title``
+    above it when given; returns the path as a string."""
+    _suptitle(fig, title)
+    fig.savefig(os.fspath(path), dpi=DPI, bbox_inches='tight', pad_inches=0.05)
+    return os.fspath(path)
+
+
 def _save(fig: Figure, out_dir: str, name: str) -> str:
-    """Write ``fig`` as ``out_dir/name`` at :data:`DPI` (legends outside the axes included)."""
-    path = os.path.join(out_dir, name)
-    fig.savefig(path, dpi=DPI, bbox_inches='tight', pad_inches=0.05)
-    return path
+    """Write ``fig`` as ``out_dir/name`` (:func:`save_png`)."""
+    return save_png(fig, os.path.join(out_dir, name))
+
+
+def tool_path_and_speed_axes(ax_xy: Axes, ax_v: Axes, speed_title: str) -> None:
+    """Labels of the pair of axes the motion figures share: the tool path in the xy plane (equal
+    scales, base frame) and the tool speed against time; both with a grid."""
+    ax_xy.set_aspect('equal', adjustable='datalim')
+    ax_xy.set_xlabel(r'tool $x$ (m)')
+    ax_xy.set_ylabel(r'tool $y$ (m)')
+    ax_xy.set_title('tool path (xy plane, base frame)', fontsize=9)
+    ax_v.set_xlabel(T_LABEL)
+    ax_v.set_ylabel(r'tool speed $|v|$ (m/s)')
+    ax_v.set_title(speed_title, fontsize=9)
+    ax_xy.grid(True, alpha=0.3)
+    ax_v.grid(True, alpha=0.3)
 
 
 def _legend_outside(ax: Axes, fontsize: float = 8) -> None:
@@ -382,8 +402,7 @@ def plot_trajectories(path: str | os.PathLike[str], columns: Sequence[tuple[str,
     for col in range(ncols):
         axes[-1, col].set_xlabel('time from start (s)')
     fig.suptitle(title, fontsize=10)
-    fig.savefig(os.fspath(path), dpi=DPI, bbox_inches='tight', pad_inches=0.05)
-    return os.fspath(path)
+    return save_png(fig, path)
 
 
 def plot_via_blend(path: str | os.PathLike[str],
@@ -418,22 +437,12 @@ def plot_via_blend(path: str | os.PathLike[str],
         for k, (x, y) in enumerate(via[1:-1, :2]):
             ax_xy.add_patch(Circle((x, y), blend_radius, fill=False, ls='--', lw=0.8, color='C3',
                                    label=f'blend radius {blend_radius:g} m' if k == 0 else None))
-    ax_xy.set_aspect('equal', adjustable='datalim')
-    ax_xy.set_xlabel(r'tool $x$ (m)')
-    ax_xy.set_ylabel(r'tool $y$ (m)')
-    ax_xy.set_title('tool path (xy plane, base frame)', fontsize=9)
-    ax_v.set_xlabel(T_LABEL)
-    ax_v.set_ylabel(r'tool speed $|v|$ (m/s)')
-    ax_v.set_title('tool speed', fontsize=9)
-    ax_xy.grid(True, alpha=0.3)
-    ax_v.grid(True, alpha=0.3)
+    tool_path_and_speed_axes(ax_xy, ax_v, 'tool speed')
     handles, labels = ax_xy.get_legend_handles_labels()     # one legend for both, to the right
     ax_v.legend(handles, labels, loc='upper left', bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
                 fontsize=7)
-    _suptitle(fig, title)
-    fig.savefig(os.fspath(path), dpi=DPI, bbox_inches='tight', pad_inches=0.05)
-    return os.fspath(path)
+    return save_png(fig, path, title)
 
 
 __all__ = ['DPI', 'JointSeries', 'is_planar', 'plot_comparison', 'plot_timed_comparison', 'plot_trajectories',
-           'plot_via_blend']
+           'plot_via_blend', 'save_png', 'tool_path_and_speed_axes']
