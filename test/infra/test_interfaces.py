@@ -32,6 +32,16 @@ def _constants(text: str) -> dict[str, int]:
     return {m.group(1): int(m.group(2)) for m in re.finditer(r'^int32\s+(\w+)\s*=\s*(-?\d+)', text, re.M)}
 
 
+def _bare_python_json(code: str) -> dict:
+    """Run ``code`` in the venv's python with a bare environment (no ROS set-up) and decode the
+    JSON line it prints last."""
+    import json
+    env = {'PATH': '/usr/bin:/bin', 'HOME': os.environ.get('HOME', '/tmp')}
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120, env=env)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
 def test_error_code_definitions_are_the_promised_ones() -> None:
     assert _constants((PACKAGE / 'msg' / 'PlanErrorCode.msg').read_text()) == CODES
 
@@ -46,11 +56,7 @@ def test_built_package_imports_with_no_ros_environment() -> None:
             ' "request": sorted(req.get_fields_and_field_types()),'
             ' "response": sorted(res.get_fields_and_field_types()),'
             ' "execute": req.execute, "code": res.error_code.val}))\n').replace('%r', repr(sorted(CODES)))
-    env = {'PATH': '/usr/bin:/bin', 'HOME': os.environ.get('HOME', '/tmp')}
-    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120, env=env)
-    assert result.returncode == 0, result.stderr[-3000:]
-    import json
-    out = json.loads(result.stdout.strip().splitlines()[-1])
+    out = _bare_python_json(code)
     assert out['codes'] == CODES
     assert out['request'] == sorted(['start', 'goal', 'start_joints', 'goal_joints', 'via_poses',
                                      'velocity_scaling_factor', 'acceleration_scaling_factor', 'execute',
@@ -76,11 +82,7 @@ def test_scene_types_import_with_their_fields() -> None:
             'obj = getattr(importlib.import_module("geodesic_planner_interfaces.msg"), "CollisionObject")()\n'
             'out["types"] = obj.get_fields_and_field_types()\n'
             'print(json.dumps(out))\n').replace('NAMES', repr(sorted(SCENE_TYPES)))
-    env = {'PATH': '/usr/bin:/bin', 'HOME': os.environ.get('HOME', '/tmp')}
-    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120, env=env)
-    assert result.returncode == 0, result.stderr[-3000:]
-    import json
-    out = json.loads(result.stdout.strip().splitlines()[-1])
+    out = _bare_python_json(code)
     assert out.pop('types') == {'id': 'string', 'attached': 'boolean', 'pose': 'geometry_msgs/Pose',
                                 'primitive': 'shape_msgs/SolidPrimitive', 'mesh': 'shape_msgs/Mesh',
                                 'mesh_resource': 'string', 'mesh_scale': 'geometry_msgs/Vector3'}

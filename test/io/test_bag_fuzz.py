@@ -15,25 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_bag_corruption import assert_one_error_line, make_bag, run_cli
+from test_bag_corruption import check_info_and_repair, make_bag
 
 SEED = 25
 #: MCAP opcodes of the records whose strings are flipped (Schema, Channel) and of Chunk (the messages).
 SCHEMA, CHANNEL, CHUNK = 0x03, 0x04, 0x06
 MAGIC = b'\x89MCAP0\r\n'
-
-
-def check_tools(bag: Path) -> None:
-    """info and repair: exit 0 or one ERROR line; a bag repaired without error reads afterwards."""
-    rc, _, err = run_cli('info', str(bag))
-    assert rc in (0, 1), err
-    assert_one_error_line(rc, err)
-    rc, out, err = run_cli('repair', str(bag))
-    assert rc in (0, 1), err
-    assert_one_error_line(rc, err)
-    if rc == 0:
-        rc, _, err = run_cli('info', str(bag))
-        assert rc == 0, (out, err)
 
 
 @pytest.fixture(scope='module')
@@ -62,7 +49,7 @@ def test_sqlite_text_with_invalid_utf8(pristine, tmp_path, table, column) -> Non
     with con:                 # invalid UTF-8 (a lone continuation byte, a truncated sequence) as TEXT
         con.execute(f"UPDATE {table} SET {column} = CAST(x'2f80ff74c3' AS TEXT)")
     con.close()
-    check_tools(bag)
+    check_info_and_repair(bag)
 
 
 def test_sqlite_payload_bytes_flipped(pristine, tmp_path) -> None:
@@ -78,7 +65,7 @@ def test_sqlite_payload_bytes_flipped(pristine, tmp_path) -> None:
                     data[at] ^= 1 << int(rng.integers(0, 8))
                 con.execute('UPDATE messages SET data = ? WHERE id = ?', (bytes(data), rid))
         con.close()
-        check_tools(bag)
+        check_info_and_repair(bag)
 
 
 @pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
@@ -90,7 +77,7 @@ def test_metadata_bytes_flipped(pristine, tmp_path, storage) -> None:
         for at in rng.integers(0, len(meta), size=1 + k):
             meta[at] ^= 0x80 | (1 << int(rng.integers(0, 7)))
         (bag / 'metadata.yaml').write_bytes(bytes(meta))
-        check_tools(bag)
+        check_info_and_repair(bag)
 
 
 # ---------------------------------------------------------------------------------------- MCAP
@@ -115,7 +102,7 @@ def test_mcap_truncated_at_every_record_boundary(pristine, tmp_path) -> None:
     for k, cut in enumerate(bounds):
         bag, storage = copy(pristine['mcap'], tmp_path / f'bag{k}')
         storage.write_bytes(data[:cut])
-        check_tools(bag)
+        check_info_and_repair(bag)
 
 
 @pytest.mark.parametrize('opcode', [SCHEMA, CHANNEL, CHUNK])
@@ -131,7 +118,7 @@ def test_mcap_bytes_flipped_in_records(pristine, tmp_path, opcode) -> None:
             corrupt[at] ^= 0x80 | (1 << int(rng.integers(0, 7)))
         bag, storage = copy(pristine['mcap'], tmp_path / f'bag{k}')
         storage.write_bytes(bytes(corrupt))
-        check_tools(bag)
+        check_info_and_repair(bag)
 
 
 @pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
@@ -145,4 +132,4 @@ def test_storage_file_bytes_flipped_anywhere(pristine, tmp_path, storage) -> Non
             corrupt[at] ^= 1 << int(rng.integers(0, 8))
         bag, file = copy(pristine[storage], tmp_path / f'bag{k}')
         file.write_bytes(bytes(corrupt))
-        check_tools(bag)
+        check_info_and_repair(bag)
