@@ -7,7 +7,7 @@ continuity); ``q(s) = q_i((s − s_i)/Δs_i)`` and the k-th derivative divides b
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -70,23 +70,22 @@ class PiecewiseGeodesicPath(JointPath):
 
         ``order`` < 3 returns only the first ``order + 1`` arrays.
         """
-        s = check_s(s)
         order = check_order(order)
-        out = [np.empty((s.size, self.dof)) for _ in range(order + 1)]
-        for i, sel, u in by_segment(self.breakpoints, s):
-            w = self.breakpoints[i + 1] - self.breakpoints[i]
-            for k, arr in enumerate(self.pieces[i].evaluate(u, order)):
-                out[k][sel] = arr / w**k
-        return tuple(out)
+        return self._chain(check_s(s), order, lambda piece, u: piece.evaluate(u, order))
 
     def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, ...]:
         """Each piece's :meth:`~.path.JointPath.interpolate`, at global s (the chain rule of
         :meth:`evaluate`)."""
-        s = check_s(s)
-        out = [np.empty((s.size, self.dof)) for _ in range(4)]
+        return self._chain(check_s(s), 3, lambda piece, u: piece.interpolate(u))
+
+    def _chain(self, s: np.ndarray, order: int,
+               values: Callable[[JointPath, np.ndarray], tuple[np.ndarray, ...]]) -> tuple[np.ndarray, ...]:
+        """``values(piece, u)`` of the piece holding each global s, derivatives divided by the
+        piece's width to the power of their order (the chain rule)."""
+        out = [np.empty((s.size, self.dof)) for _ in range(order + 1)]
         for i, sel, u in by_segment(self.breakpoints, s):
             w = self.breakpoints[i + 1] - self.breakpoints[i]
-            for k, arr in enumerate(self.pieces[i].interpolate(u)):
+            for k, arr in enumerate(values(self.pieces[i], u)):
                 out[k][sel] = arr / w**k
         return tuple(out)
 
