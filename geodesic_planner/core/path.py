@@ -103,8 +103,8 @@ class JointPath(ABC):
     def deviation(self, s: np.ndarray) -> np.ndarray:
         """Distance (m) of the tool from the path's own geometry at s (N,): here the straight
         segment between the path's end positions (LIN); an arc's circle, nothing for PTP."""
-        ends = self.ee_poses(np.array([0.0, 1.0]))[:, :3, 3]
-        return segment_distance(self.ee_poses(s)[:, :3, 3], ends[0], ends[1])
+        p = self.ee_poses(np.concatenate([[0.0, 1.0], check_s(s)]))[:, :3, 3]    # the ends, then s
+        return segment_distance(p[2:], p[0], p[1])
 
     def line_deviation(self, samples: int = 101) -> float:
         """Largest :meth:`deviation` (m) on ``samples`` uniform values of s (piecewise paths:
