@@ -7,14 +7,15 @@ until every subscription the graph shows on the topic has matched its publisher.
 
 For people reading the log, :func:`matched_logger` logs ``<topic>: N subscription(s) matched``
 whenever the publisher's match count changes; programs read the same count on ``/diagnostics``
-(:mod:`geodesic_planner.ros.diagnostics`), never in the log.
+(:mod:`geodesic_planner.ros.diagnostics`), never in the log. The subscriber side has
+:func:`log_publishers_matched` and :func:`log_messages_lost` for subscription events.
 """
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
 
-from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, QoSMessageLostInfo, QoSSubscriptionMatchedInfo
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 
@@ -49,6 +50,19 @@ def matched_logger(node: Node, topic: str,
             if on_count is not None:
                 on_count(count)
     return PublisherEventCallbacks(matched=on_matched)
+
+
+def log_publishers_matched(node: Node, topic: str, status: QoSSubscriptionMatchedInfo) -> None:
+    """Log ``<topic>: N publisher(s) matched`` when a subscription's match count changed."""
+    if status.current_count_change:
+        node.get_logger().info(f'{topic}: {status.current_count} publisher(s) matched')
+
+
+def log_messages_lost(node: Node, topic: str, status: QoSMessageLostInfo) -> None:
+    """Log, as an error, the messages the rmw reports lost before a subscription received them."""
+    node.get_logger().error(
+        f'{topic}: {status.total_count_change} message(s) lost before reception '
+        f'({status.total_count} in total)')
 
 
 class MatchBeforePublish:

@@ -102,7 +102,7 @@ from ..timing.validate import trajectory_problems
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory
 from . import params, runtime
 from .diagnostics import NodeStatus
-from .matching import matched_logger, wait_for_matched_subscriptions
+from .matching import log_messages_lost, log_publishers_matched, matched_logger, wait_for_matched_subscriptions
 from .params import PROCESSOR_PARAMETERS
 
 NODE_NAME = 'trajectory_processor'
@@ -306,8 +306,8 @@ class TrajectoryProcessorNode(Node):
             raise ConfigError(msg) from err
         # Best effort matches reliable and best-effort publishers, whenever they appear.
         events = SubscriptionEventCallbacks(
-            matched=functools.partial(self._log_matched, topic),
-            message_lost=functools.partial(self._log_lost, topic))
+            matched=functools.partial(log_publishers_matched, self, topic),
+            message_lost=functools.partial(log_messages_lost, self, topic))
         self._extra_subs[topic] = self.create_subscription(
             cls, topic, functools.partial(self._record, topic),
             _qos(ReliabilityPolicy.BEST_EFFORT, keep_all=True), event_callbacks=events, raw=True)
@@ -387,23 +387,14 @@ class TrajectoryProcessorNode(Node):
             f'recorded unprocessed at shutdown {self.unprocessed}{failures}')
 
     # ------------------------------------------------------------------ processing
-    def _log_matched(self, topic: str, status: QoSSubscriptionMatchedInfo) -> None:
-        if status.current_count_change:
-            self.get_logger().info(f'{topic}: {status.current_count} publisher(s) matched')
-
-    def _log_lost(self, topic: str, status: QoSMessageLostInfo) -> None:
-        self.get_logger().error(
-            f'{topic}: {status.total_count_change} message(s) lost before reception '
-            f'({status.total_count} in total)')
-
     def _on_input_matched(self, status: QoSSubscriptionMatchedInfo) -> None:
         # A volatile reader gets only what is published after *it* matched the writer, and only
         # this node knows when that is: the count goes to /diagnostics for scripts to wait on.
-        self._log_matched(f'input {self.input_topic}', status)
+        log_publishers_matched(self, f'input {self.input_topic}', status)
         self.status.set(input_publishers_matched=status.current_count)
 
     def _on_input_lost(self, status: QoSMessageLostInfo) -> None:
-        self._log_lost(f'input {self.input_topic}', status)
+        log_messages_lost(self, f'input {self.input_topic}', status)
 
     def _on_input_incompatible(self, status: QoSRequestedIncompatibleQoSInfo) -> None:
         self.get_logger().warning(
