@@ -63,7 +63,8 @@ full), every failure is logged (the first at once, then at most one line per sec
 count since the last one), counted on ``/diagnostics`` (``bag write failures``, ``bag messages
 lost``), and summarised in the closing line (``bag write failures F, not recorded: topic: n``);
 the bag then holds N - (inputs not recorded) inputs and P - (outputs not recorded) outputs,
-and ``metadata.yaml`` says so. (See :mod:`geodesic_planner.io.bags.recorder`.)
+and ``metadata.yaml`` says so. (See :mod:`geodesic_planner.io.bags.recorder`; the node's side is
+:mod:`geodesic_planner.ros.recording`.)
 
 Executor model: one SingleThreadedExecutor, spun by ``spin_once`` in the main thread; callbacks
 (input, recorded topics, parameter services) therefore never run concurrently and the recorder
@@ -74,8 +75,6 @@ node keeps going.
 """
 from __future__ import annotations
 
-import functools
-import importlib
 import threading
 import time
 from typing import Any
@@ -92,11 +91,9 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from rclpy.timer import Timer
 from trajectory_msgs.msg import JointTrajectory
 
-from ..io.bags import JOINT_STATE, JOINT_TRAJECTORY, BagRecorder, make_typestore, new_bag_path, to_cdr
-from ..core.errors import BagError, ConfigError, GeodesicPlannerError
+from ..core.errors import ConfigError, GeodesicPlannerError
 from ..timing.resample import process_trajectory, sample_count
 from ..timing.validate import trajectory_problems
 from .conversions import arrays_to_joint_trajectory, joint_trajectory_to_arrays, validate_joint_trajectory
@@ -104,61 +101,19 @@ from . import params, runtime
 from .diagnostics import NodeStatus
 from .matching import log_messages_lost, log_publishers_matched, matched_logger, wait_for_matched_subscriptions
 from .params import PROCESSOR_PARAMETERS
+from .recording import JOINT_STATES_TOPIC, BagRecording
 
 NODE_NAME = 'trajectory_processor'
-JOINT_STATES_TOPIC = '/joint_states'
-KNOWN_TYPES = {JOINT_STATES_TOPIC: JOINT_STATE}
 DRAIN_TIMEOUT = 2.0  # s spent at shutdown processing messages already received
 RECORD_DRAIN_TIMEOUT = 5.0  # s more at shutdown recording (without processing) the remaining ones
 #: The value bound: an output may hold OUTPUT_JOINTS x max_output_points joint values per field.
 OUTPUT_JOINTS = 16
-FAILURE_LOG_PERIOD = 1.0  # s, at most one bag write failure line per period
 
 def _qos(reliability: ReliabilityPolicy = ReliabilityPolicy.RELIABLE, *, keep_all: bool = False) -> QoSProfile:
     """Volatile QoS, depth 10; ``keep_all`` for subscriptions whose every message must be recorded."""
     history = HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST
     return QoSProfile(depth=10, history=history, reliability=reliability,
                       durability=DurabilityPolicy.VOLATILE)
-
-
-class _FailureLog:
-    """Bag write failures for people: the first one at once, then at most one line per period.
-
-    Every failure is counted; the lines in between are summed into the next one (or into the
-    one :meth:`tick` writes once the period is over). Thread-safe: the recorder reports the
-    failures of its background flushes from its own thread.
-    """
-
-    def __init__(self, node: Node, period: float = FAILURE_LOG_PERIOD) -> None:
-        self._logger = node.get_logger()
-        self._period = period
-        self._lock = threading.Lock()
-        self._last = -float('inf')
-        self._held = 0
-        self._held_text = ''
-        self.total = 0
-
-    def report(self, text: str) -> None:
-        """One failure (``text`` says what and why)."""
-        with self._lock:
-            self.total += 1
-            now = time.monotonic()
-            if now - self._last < self._period:
-                self._held += 1
-                self._held_text = text
-                return
-            self._last, held, self._held = now, self._held, 0
-        more = f' (and {held} more since the last report)' if held else ''
-        self._logger.error(f'bag write failure: {text}{more}')
-
-    def tick(self) -> None:
-        """Write the failures held back, once the period since the last line is over."""
-        with self._lock:
-            now = time.monotonic()
-            if not self._held or now - self._last < self._period:
-                return
-            self._last, held, text, self._held = now, self._held, self._held_text, 0
-        self._logger.error(f'bag write failure: {held} more since the last report, the last: {text}')
 
 
 class TrajectoryProcessorNode(Node):
@@ -175,14 +130,12 @@ class TrajectoryProcessorNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         # record_topics is declared below: its default needs the resolved topic names.
         params.declare(self, [n for n in PROCESSOR_PARAMETERS if n != 'record_topics'])
-        self._typestore = make_typestore()
         self._lock = threading.Lock()
         self.received = 0
         self.published = 0
         self.rejected = 0
         self.unprocessed = 0
         self.too_large = 0
-        self.callbacks = 0
         #: set at shutdown once DRAIN_TIMEOUT is spent: inputs are recorded, not processed
         self.record_only = False
 
@@ -216,16 +169,11 @@ class TrajectoryProcessorNode(Node):
         default_record = [self.input_topic, self.output_topic, JOINT_STATES_TOPIC]
         params.declare(self, ['record_topics'], {'record_topics': default_record})
 
-        self.recorder: BagRecorder | None = None
-        self.failure_log = _FailureLog(self)
-        self._failure_timer: Timer | None = None
-        self._extra_subs: dict[str, Any] = {}
-        self._pending_types: list[str] = []
-        self._discovery_timer: Timer | None = None
+        self.bag = BagRecording(self, self.status, NODE_NAME, self.input_topic, self.output_topic)
         if self.get_parameter('bag_path').value:
-            self._start_recording()
+            self.bag.start()
         else:
-            self._parse_record_topics()  # validated even when recording is off
+            self.bag.parse_record_topics()  # validated even when recording is off
         self.get_logger().info(
             f'processing {self.input_topic} -> {self.output_topic}: sample_period '
             f'{float(self.get_parameter("sample_period").value):g} s, velocity_scaling '
@@ -239,152 +187,13 @@ class TrajectoryProcessorNode(Node):
             return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
-    # ------------------------------------------------------------------ recording
-    def _resolve(self, topic: str) -> str:
-        try:
-            return self.resolve_topic_name(topic)
-        except (NameValidationException, ValueError, RuntimeError) as err:
-            msg = f'invalid topic name in record_topics: {topic!r} ({err})'
-            raise ConfigError(msg) from err
-
-    def _parse_record_topics(self) -> tuple[dict[str, str], dict[str, str], list[str]]:
-        """record_topics -> (own trajectory topics, other typed topics, topics of unknown type).
-
-        Raises:
-            ConfigError: bad topic name, unknown message type, wrong type for input/output.
-        """
-        topics: dict[str, str] = {}
-        extra: dict[str, str] = {}
-        pending: list[str] = []
-        for entry in self.get_parameter('record_topics').value:
-            name, _, msgtype = entry.replace('=', ':', 1).partition(':')
-            topic = self._resolve(name)
-            if topic in (self.input_topic, self.output_topic):
-                if msgtype and msgtype != JOINT_TRAJECTORY:
-                    msg = f'record_topics: {topic} is a {JOINT_TRAJECTORY} topic, not {msgtype}'
-                    raise ConfigError(msg)
-                topics[topic] = JOINT_TRAJECTORY
-            elif msgtype or topic in KNOWN_TYPES:
-                extra[topic] = msgtype or KNOWN_TYPES[topic]
-                if extra[topic] not in self._typestore.fielddefs:
-                    msg = f'record_topics: unknown message type {extra[topic]!r} for {topic}'
-                    raise ConfigError(msg)
-            elif topic not in pending:
-                pending.append(topic)
-        return topics, extra, pending
-
-    def _start_recording(self) -> None:
-        base = self.get_parameter('bag_path').value
-        storage = self.get_parameter('storage').value
-        topics, extra, self._pending_types = self._parse_record_topics()
-        path = new_bag_path(base, prefix=NODE_NAME)
-        custom = {'recorded_by': NODE_NAME, 'input_topic': self.input_topic,
-                  'output_topic': self.output_topic}
-        for name in ('sample_period', 'velocity_scaling'):  # values at start (they may change later)
-            custom[name] = repr(float(self.get_parameter(name).value))
-        self.recorder = BagRecorder(path, storage=storage, topics={**topics, **extra},
-                                    typestore=self._typestore, custom_data=custom,
-                                    on_error=self.failure_log.report)
-        self.recorder.open()
-        self.status.set(bag_write_failures=0, bag_messages_lost=0)
-        self._failure_timer = self.create_timer(FAILURE_LOG_PERIOD, self._report_failures)
-        where = path if str(path) == str(base) else f'{path} ({base} exists, not overwritten)'
-        self.get_logger().info(f'recording {", ".join(self.recorder.topics)} to {where} [{storage}]')
-        for topic, msgtype in extra.items():
-            self._subscribe_raw(topic, msgtype)
-        if self._pending_types:
-            pending = ', '.join(self._pending_types)
-            self.get_logger().info(f'waiting for publishers to learn the types of {pending}')
-            self._discovery_timer = self.create_timer(0.5, self._discover_types)
-
-    def _subscribe_raw(self, topic: str, msgtype: str) -> None:
-        pkg, _, name = msgtype.partition('/msg/')
-        try:
-            cls = getattr(importlib.import_module(f'{pkg}.msg'), name)
-        except (ImportError, AttributeError) as err:
-            msg = f'cannot record {topic}: message type {msgtype} not available in Python ({err})'
-            raise ConfigError(msg) from err
-        # Best effort matches reliable and best-effort publishers, whenever they appear.
-        events = SubscriptionEventCallbacks(
-            matched=functools.partial(log_publishers_matched, self, topic),
-            message_lost=functools.partial(log_messages_lost, self, topic))
-        self._extra_subs[topic] = self.create_subscription(
-            cls, topic, functools.partial(self._record, topic),
-            _qos(ReliabilityPolicy.BEST_EFFORT, keep_all=True), event_callbacks=events, raw=True)
-
-    def _discover_types(self) -> None:
-        types = dict(self.get_topic_names_and_types())
-        for topic in list(self._pending_types):
-            found = types.get(topic)
-            if not found:
-                continue
-            msgtype = found[0]
-            self._pending_types.remove(topic)
-            try:
-                assert self.recorder is not None
-                self.recorder.add_topic(topic, msgtype)
-                self._subscribe_raw(topic, msgtype)
-                self.get_logger().info(f'recording {topic} [{msgtype}]')
-            except GeodesicPlannerError as err:
-                self.get_logger().error(f'cannot record {topic}: {err}')
-        if not self._pending_types and self._discovery_timer is not None:
-            self._discovery_timer.cancel()
-
-    def _now_ns(self) -> int:
-        return self.get_clock().now().nanoseconds
-
-    def _record(self, topic: str, data: bytes) -> None:
-        self.callbacks += 1
-        if self.recorder is None or topic not in self.recorder.topics:
-            return
-        self._write(topic, data)
-
-    def _write(self, topic: str, data: bytes) -> None:
-        """Record one message; a failure is reported (rate-limited) and counted, never raised."""
-        assert self.recorder is not None
-        try:
-            self.recorder.write(topic, self._now_ns(), data)
-        except BagError as err:
-            self.failure_log.report(str(err))
-            self._report_failures()
-
-    def _report_failures(self) -> None:
-        """Held-back failure lines to the log, failure counts to /diagnostics."""
-        self.failure_log.tick()
-        recorder = self.recorder
-        if recorder is not None:
-            self.status.set(bag_write_failures=recorder.failures,
-                            bag_messages_lost=sum(recorder.lost.values()))
-
     def close_bag(self) -> None:
-        """Finish the bag (metadata written) and log what it holds. Idempotent.
+        """Finish the bag (metadata written) and log what it holds and the node's counts. Idempotent.
 
-        The closing line's counts are what the storage file holds, also after write failures
-        (then summarised in the same line) or when the bag could not be finished.
+        See :meth:`geodesic_planner.ros.recording.BagRecording.close` for the closing line.
         """
-        recorder, self.recorder = self.recorder, None
-        if recorder is None:
-            return
-        if self._failure_timer is not None:
-            self._failure_timer.cancel()
-        state = 'bag closed'
-        try:
-            recorder.close()
-        except BagError as err:
-            self.get_logger().error(str(err))
-            state = 'bag NOT finished (repair it)'
-        self.failure_log.tick()
-        on_disk = recorder.counts
-        counts = ', '.join(f'{t}: {n}' for t, n in on_disk.items())
-        failures = ''
-        if recorder.failures:
-            lost = ', '.join(f'{t}: {n}' for t, n in recorder.lost.items()) or 'none'
-            failures = (f'; bag write failures {recorder.failures}, not recorded: {lost} '
-                        f'(last error: {recorder.last_error})')
-        log = self.get_logger().error if state != 'bag closed' or recorder.failures else self.get_logger().info
-        log(f'{state}: {recorder.path} ({sum(on_disk.values())} messages; {counts}); '
-            f'received {self.received}, published {self.published}, rejected {self.rejected}, '
-            f'recorded unprocessed at shutdown {self.unprocessed}{failures}')
+        self.bag.close(f'received {self.received}, published {self.published}, rejected {self.rejected}, '
+                       f'recorded unprocessed at shutdown {self.unprocessed}')
 
     # ------------------------------------------------------------------ processing
     def _on_input_matched(self, status: QoSSubscriptionMatchedInfo) -> None:
@@ -403,7 +212,7 @@ class TrajectoryProcessorNode(Node):
 
     def _on_input(self, raw: bytes) -> None:
         self.received += 1
-        self._record(self.input_topic, raw)
+        self.bag.record(self.input_topic, raw)
         if self.record_only:
             self.unprocessed += 1
             return
@@ -470,8 +279,7 @@ class TrajectoryProcessorNode(Node):
         wait_for_matched_subscriptions(self, self.output_pub)
         self.output_pub.publish(out)
         self.published += 1
-        if self.recorder is not None and self.output_topic in self.recorder.topics:
-            self._write(self.output_topic, to_cdr(out, JOINT_TRAJECTORY, self._typestore))
+        self.bag.record_output(out)
         span_in = arrays.t[-1] - arrays.t[0]
         self.get_logger().info(
             f'received trajectory: {arrays.t.size} points, {span_in:.3g} s -> published {t.size} points, '
@@ -512,9 +320,9 @@ def _drain(node: TrajectoryProcessorNode, executor: SingleThreadedExecutor) -> N
     """
     start = time.monotonic()
     while rclpy.ok():
-        before = node.received + node.callbacks
+        before = node.received + node.bag.callbacks
         executor.spin_once(timeout_sec=0.05)
-        if node.received + node.callbacks == before:
+        if node.received + node.bag.callbacks == before:
             return
         elapsed = time.monotonic() - start
         if not node.record_only and elapsed >= DRAIN_TIMEOUT:
