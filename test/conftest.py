@@ -7,6 +7,11 @@ Markers:
             skipped with the reason, unless ``GEODESIC_PLANNER_NETNS=off``.
     slow:   long runs; skipped unless ``--run-slow`` or ``GP_RUN_SLOW=1``.
     linter: style and consistency checks of the source tree.
+
+Parallel runs (pytest-xdist, ``-n N``; scripts/test.sh passes ``-n 3 --dist loadscope``): every
+worker gets a ROS domain of its own (``ROS_DOMAIN_ID``, :func:`tools.netns.worker_domain`), set
+before any rclpy context exists and inherited by the nodes it starts, so the workers' nodes never
+discover each other inside the shared network namespace.
 """
 from __future__ import annotations
 
@@ -32,6 +37,9 @@ def pytest_configure(config: pytest.Config) -> None:
     # read by now. Tests that start pytest again (scripts/test.sh, the conftest checks) must not
     # inherit them: a nested run would get -q twice, or write over this run's junit file.
     os.environ.pop('PYTEST_ADDOPTS', None)
+    domain = netns.worker_domain(os.environ.get('PYTEST_XDIST_WORKER'))
+    if domain is not None:
+        os.environ['ROS_DOMAIN_ID'] = str(domain)
     # rosidl's parser imports lark 0.12, which uses the deprecated sre_parse/sre_constants modules.
     config.addinivalue_line(
         'filterwarnings', r'ignore:module .sre_(parse|constants). is deprecated:DeprecationWarning')
@@ -50,7 +58,22 @@ def run_slow_enabled(config: pytest.Config) -> bool:
     return bool(config.getoption('--run-slow')) or os.environ.get('GP_RUN_SLOW', '') == '1'
 
 
+#: Modules that take longest (most of it waiting on processes or a build): collected first, so
+#: that in a parallel run they start at once and overlap the rest instead of ending it alone.
+LONG_FIRST = ('test/infra/test_colcon.py', 'test/ros/test_unique_names.py', 'test/ros/test_overload.py',
+              'test/ros/test_planner_node.py', 'test/ros/test_processor.py', 'test/ros/test_reliability.py')
+
+
+def _long_first(items: list[pytest.Item]) -> None:
+    """Reorder ``items`` in place: LONG_FIRST's modules first (in its order), the rest as collected."""
+    def rank(item: pytest.Item) -> int:
+        path = item.nodeid.split('::', 1)[0]
+        return LONG_FIRST.index(path) if path in LONG_FIRST else len(LONG_FIRST)
+    items.sort(key=rank)     # stable: each module's own order is kept
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    _long_first(items)
     if not run_slow_enabled(config):
         skip_slow = pytest.mark.skip(reason='slow: run with --run-slow or GP_RUN_SLOW=1')
         for item in items:

@@ -16,6 +16,7 @@ __all__ = [
     'isolation_problem',
     'network_interfaces',
     'parse_proc_net_dev',
+    'worker_domain',
 ]
 
 #: Environment variable that disables the namespace requirement when set to ``off``.
@@ -95,3 +96,14 @@ def isolation_problem(interfaces: list[str] | None = None,
     return (f'not inside a loopback-only network namespace (interfaces: {", ".join(interfaces)}): '
             'run through scripts/netns.sh (bash scripts/test.sh and bash scripts/demo.sh do), '
             f'or set {ENV_OPT_OUT}=off to run without isolation')
+
+
+#: ROS domain of xdist worker ``gwN``: WORKER_DOMAIN_BASE + N (a plain run keeps the caller's).
+WORKER_DOMAIN_BASE = 11
+
+
+def worker_domain(worker: str | None) -> int | None:
+    """The ROS domain id of xdist worker ``worker`` ('gw0', 'gw1', ...); None outside xdist."""
+    if not worker or not worker.startswith('gw') or not worker[2:].isdigit():
+        return None
+    return WORKER_DOMAIN_BASE + int(worker[2:])

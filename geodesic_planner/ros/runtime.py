@@ -121,6 +121,7 @@ class UniqueNameGuard:
         self._t0 = time.monotonic()
         self._ticks = 0
         self._state = ''
+        self._was_unique = False
         self._seen: set[str] = set()       # ids of the namesakes' claims received
         if start_ns is None:
             start_ns = time.time_ns()
@@ -145,6 +146,7 @@ class UniqueNameGuard:
         return len(self._seen)
 
     def _set_state(self, state: str) -> None:
+        self._was_unique = self._was_unique or state == 'unique'
         if state != self._state:
             self._state = state
             self._on_state(state)
@@ -159,7 +161,9 @@ class UniqueNameGuard:
         full = self._node.get_fully_qualified_name()
         self._set_state('duplicate')
         if key > theirs:
-            started = 'cannot start' if time.monotonic() - self._t0 <= self._window else 'stopping'
+            # 'cannot start' until the node has once found itself alone (its start-up is over);
+            # by the graph, not the clock: under load a claim can arrive after the window
+            started = 'stopping' if self._was_unique else 'cannot start'
             self.refusal = (f'another node named {full} is already running (started '
                             f'{_seconds_between(theirs, key):.3f} s before this one): two nodes of '
                             'one name would both serve every request; give this one another name '

@@ -257,13 +257,31 @@ def test_ci_run_calls_exactly_the_readme_test_command() -> None:
 
 
 def test_test_sh_turns_no_tests_collected_into_failure() -> None:
+    # one process (GP_TEST_WORKERS=1): xdist's controller reports no 'deselected' count
     result = _run(['bash', str(SCRIPTS / 'test.sh'), '-q', '-k', 'zzz_no_such_test_zzz',
-                   'test/infra/test_infra.py'], timeout=300)
+                   'test/infra/test_infra.py'], timeout=300,
+                  env={**os.environ, 'GP_TEST_WORKERS': '1'})
     if result.returncode == 2 and 'CAP_SYS_ADMIN' in result.stderr:
         pytest.skip('no permission to create network namespaces here')
     assert result.returncode == 1, result.stdout + result.stderr
     assert 'collected no tests' in result.stderr
     assert 'deselected' in result.stdout
+
+
+def test_each_xdist_worker_has_a_ros_domain_of_its_own() -> None:
+    from tools.netns import WORKER_DOMAIN_BASE, worker_domain
+    domains = [worker_domain(f'gw{i}') for i in range(8)]
+    assert domains == [WORKER_DOMAIN_BASE + i for i in range(8)]
+    assert all(0 <= d <= 101 for d in domains)       # valid with the default port mapping on Linux
+    assert worker_domain(None) is None and worker_domain('') is None and worker_domain('master') is None
+    worker = os.environ.get('PYTEST_XDIST_WORKER')
+    if worker:                                        # this run: the domain is set in this worker
+        assert os.environ['ROS_DOMAIN_ID'] == str(worker_domain(worker))
+
+
+def test_test_sh_runs_workers_unless_told_otherwise() -> None:
+    text = (SCRIPTS / 'test.sh').read_text()
+    assert 'GP_TEST_WORKERS:-3' in text and '--dist loadscope' in text
 
 
 def test_setup_env_stamp_skips_pip_and_failures_are_visible(tmp_path: Path) -> None:

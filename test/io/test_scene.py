@@ -285,9 +285,10 @@ def test_long_ids_are_cut_in_messages() -> None:
         parse_scene(_scene({'id': 'x' * 5000}))
 
 
-def test_load_scene_file_errors(tmp_path: Path) -> None:
-    with pytest.raises(RequestError, match=r"^cannot read scene '.*missing.yaml': No such file"):
-        load_scene(str(tmp_path / 'missing.yaml'))
+def test_load_scene_file_errors(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)       # a short name: long paths are cut in messages
+    with pytest.raises(RequestError, match=r"^cannot read scene 'missing.yaml': No such file"):
+        load_scene('missing.yaml')
     bad = tmp_path / 'bad.yaml'
     bad.write_text('objects: [\n  - id: a\n')
     with pytest.raises(RequestError, match=r"^malformed YAML in scene '.*bad.yaml' at line \d+, column \d+"):
