@@ -7,7 +7,8 @@
 #        bash scripts/test.sh --run-slow        (also the long runs marked @pytest.mark.slow)
 #   GP_TEST_WORKERS=N  pytest-xdist workers (default 3; 0 or 1: one process). Each worker has a ROS
 #                      domain of its own (test/conftest.py); a module's tests stay on one worker
-#                      (--dist loadscope), so module-scoped nodes start once. An explicit -n wins.
+#                      (--dist loadscope), so module-scoped nodes start once; the longest modules
+#                      go first (test/conftest.py LONG_FIRST). An explicit -n wins.
 # Exit code: pytest's; "no tests collected" (pytest's 5) is turned into a failure (1).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -40,7 +41,7 @@ workers="${GP_TEST_WORKERS:-3}"
 parallel=()
 case " $* " in
     *" -n "*|*" -n"[0-9]*|*" --numprocesses"*|*"no:xdist"*) ;;
-    *) if [ "$workers" -gt 1 ] 2>/dev/null; then parallel=(-n "$workers" --dist loadscope); fi ;;
+    *) if [ "$workers" -gt 1 ] 2>/dev/null; then parallel=(-n "$workers" --dist loadscope --no-loadscope-reorder); fi ;;
 esac
 
 set +e

@@ -8,10 +8,10 @@ Markers:
     slow:   long runs; skipped unless ``--run-slow`` or ``GP_RUN_SLOW=1``.
     linter: style and consistency checks of the source tree.
 
-Parallel runs (pytest-xdist, ``-n N``; scripts/test.sh passes ``-n 3 --dist loadscope``): every
-worker gets a ROS domain of its own (``ROS_DOMAIN_ID``, :func:`tools.netns.worker_domain`), set
-before any rclpy context exists and inherited by the nodes it starts, so the workers' nodes never
-discover each other inside the shared network namespace.
+Parallel runs (pytest-xdist, ``-n N``; scripts/test.sh passes ``-n 3 --dist loadscope
+--no-loadscope-reorder``): every worker gets a ROS domain of its own (``ROS_DOMAIN_ID``,
+:func:`tools.netns.worker_domain`), set before any rclpy context exists and inherited by the nodes
+it starts, so the workers' nodes never discover each other inside the shared network namespace.
 """
 from __future__ import annotations
 
@@ -58,10 +58,16 @@ def run_slow_enabled(config: pytest.Config) -> bool:
     return bool(config.getoption('--run-slow')) or os.environ.get('GP_RUN_SLOW', '') == '1'
 
 
-#: Modules that take longest (most of it waiting on processes or a build): collected first, so
-#: that in a parallel run they start at once and overlap the rest instead of ending it alone.
-LONG_FIRST = ('test/infra/test_colcon.py', 'test/ros/test_unique_names.py', 'test/ros/test_overload.py',
-              'test/ros/test_planner_node.py', 'test/ros/test_processor.py', 'test/ros/test_reliability.py')
+#: The modules that take longest (waiting on processes or a build, or computing), longest first
+#: (measured with tools/timeline.py): a parallel run (scripts/test.sh: --dist loadscope
+#: --no-loadscope-reorder) hands them out first, so that they overlap the many short modules
+#: instead of ending the run alone.
+LONG_FIRST = ('test/infra/test_colcon.py', 'test/ros/test_unique_names.py', 'test/ros/test_planner_node.py',
+              'test/ros/test_processor.py', 'test/timing/test_tool_speed.py', 'test/timing/test_jerk.py',
+              'test/ros/test_reliability.py', 'test/timing/test_constant_speed.py', 'test/ros/test_overload.py',
+              'test/cli/test_compare.py', 'test/io/test_bag_fuzz.py', 'test/core/test_blend.py',
+              'test/ros/test_processor_hardening.py', 'test/core/test_long_way.py',
+              'test/ros/test_model_sources.py', 'test/infra/test_ament_lint.py')
 
 
 def _long_first(items: list[pytest.Item]) -> None:
