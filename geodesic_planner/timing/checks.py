@@ -7,7 +7,7 @@ import numpy as np
 
 from .tuning import LOCAL_MARGIN, LOCAL_POWER, PEAK_CHECKS, PEAK_SAMPLES
 
-__all__ = ['distinct_times', 'local_cap', 'peak_samples']
+__all__ = ['distinct_times', 'local_cap', 'peak_samples', 'range_max']
 
 
 def local_cap(s_nodes: np.ndarray, x: np.ndarray, law: object, t: np.ndarray, need: np.ndarray,
@@ -28,10 +28,33 @@ def local_cap(s_nodes: np.ndarray, x: np.ndarray, law: object, t: np.ndarray, ne
     s_hi = law.evaluate(tb + window, jerk=False)[0]        # type: ignore[attr-defined]
     lo = np.searchsorted(s_nodes, s_lo, side='left')
     hi = np.searchsorted(s_nodes, s_hi, side='right')
-    factor = np.ones(s_nodes.size)
-    for a, b, f in zip(lo.tolist(), hi.tolist(), need[bad].tolist()):
-        np.maximum(factor[a:b], f, out=factor[a:b])
+    factor = np.maximum(range_max(s_nodes.size, lo, hi, need[bad]), 1.0)
     return np.minimum(out, x / factor**LOCAL_POWER * (1.0 - LOCAL_MARGIN))
+
+
+def range_max(n: int, lo: np.ndarray, hi: np.ndarray, value: np.ndarray) -> np.ndarray:
+    """Per index i < n, the largest ``value[k]`` with ``lo[k] <= i < hi[k]`` (-inf where none).
+
+    Each interval is covered by two blocks of length 2^p (p = floor(log2(hi - lo))), one from
+    each end (overlapping is harmless for a maximum); the blocks' maxima are pushed down one
+    level at a time: O((n + K) log n) in numpy, no loop over the K intervals.
+    """
+    lo, hi, value = (np.asarray(v) for v in (lo, hi, value))
+    keep = hi > lo
+    lo, hi, value = lo[keep].astype(np.intp), hi[keep].astype(np.intp), value[keep].astype(float)
+    out = np.full(n, -np.inf)
+    if not lo.size:
+        return out
+    p = np.floor(np.log2(hi - lo)).astype(np.intp)
+    levels = int(p.max()) + 1
+    block = np.full((levels, n), -np.inf)      # block[j, i]: max over intervals covering [i, i + 2^j)
+    np.maximum.at(block, (p, lo), value)
+    np.maximum.at(block, (p, hi - (1 << p)), value)
+    for j in range(levels - 1, 0, -1):
+        half = 1 << (j - 1)
+        np.maximum(block[j - 1], block[j], out=block[j - 1])
+        np.maximum(block[j - 1, half:], block[j, :n - half], out=block[j - 1, half:])
+    return block[0]
 
 
 def peak_samples(t: np.ndarray, need: np.ndarray, spacing: float, duration: float) -> np.ndarray:

@@ -31,7 +31,6 @@ q(s) never changes, only s(t).
 """
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -47,6 +46,7 @@ from .checks import local_cap, peak_samples
 from .tuning import CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS, TOPP_MARGIN
 from .tool import ToolRows, tool_rows
 from .topp import topp
+from .box_filter import BoxLaw, StarPiece, build_box_law, star_pieces
 from .trajectory import Trajectory
 
 #: Uniform time samples of the check while the width is searched (plus those near the jerk
@@ -68,137 +68,15 @@ CRUISE_TRIGGER = 0.5
 LOCAL_GAIN = 0.002
 
 
-@dataclass(frozen=True, eq=False)
-class StarPiece:
-    """The time-optimal law of one rest-to-rest piece, ``s*(r) - s_start`` in local time r, s.
-
-    Per step k (starting at ``t0[k]``): ``s* = s0 + v0 d + u d^2 / 2`` with ``d = r - t0[k]``;
-    ``S1`` is the integral of ``s* - s_start`` from 0 to ``t0[k]``. Before 0: 0; after
-    ``t_star``: ``span``, at rest.
-    """
-
-    t0: np.ndarray
-    s0: np.ndarray
-    v0: np.ndarray
-    u: np.ndarray
-    S1: np.ndarray
-    t_star: float
-    span: float
-    S1_end: float
-
-    def at(self, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Integral S1, s* - s_start, sdot*, sddot* at local times ``r`` (M,) (any real)."""
-        k = clip(np.searchsorted(self.t0, r, side='right') - 1, 0, self.t0.size - 1)
-        d = r - self.t0[k]
-        s0, v0, u = self.s0[k], self.v0[k], self.u[k]
-        S1 = self.S1[k] + d * (s0 + d * (0.5 * v0 + d * u / 6.0))
-        s = s0 + d * (v0 + 0.5 * u * d)
-        v = v0 + u * d
-        before, after = r <= 0.0, r >= self.t_star
-        zero = before | after
-        S1 = np.where(before, 0.0, np.where(after, self.S1_end + self.span * (r - self.t_star), S1))
-        s = np.where(before, 0.0, np.where(after, self.span, s))
-        return S1, s, np.where(zero, 0.0, v), np.where(zero, 0.0, u)
-
-
-def star_pieces(s_nodes: np.ndarray, x: np.ndarray) -> list[tuple[float, StarPiece]]:
-    """Split the optimal profile x = sdot*^2 (n+1,) at its rests: (s_start, piece) per piece."""
-    rests = np.flatnonzero(x <= 0.0)
-    out = []
-    for a, b in itertools.pairwise(rests):
-        rel = s_nodes[a:b + 1] - s_nodes[a]
-        dl = np.diff(rel)
-        v = np.sqrt(x[a:b + 1])
-        dt = 2.0 * dl / (v[:-1] + v[1:])
-        u = (x[a + 1:b + 1] - x[a:b]) / (2.0 * dl)
-        t0 = np.concatenate([[0.0], np.cumsum(dt)])
-        s0, v0 = rel[:-1], v[:-1]
-        S1 = np.concatenate([[0.0], np.cumsum(s0 * dt + v0 * dt**2 / 2.0 + u * dt**3 / 6.0)])
-        out.append((float(s_nodes[a]), StarPiece(t0[:-1], s0, v0, u, S1[:-1], float(t0[-1]),
-                                                  float(rel[-1]), float(S1[-1]))))
-    return out
-
-
-@dataclass(frozen=True, eq=False)
-class BoxLaw:
-    """The box-filtered law (a :class:`~.law.TimeScaling`): pieces one after the other.
-
-    Piece i starts at ``t_offsets[i]`` at rest at ``s_start[i]`` and lasts
-    ``stars[i].t_star + width[i]``.
-    """
-
-    stars: tuple[StarPiece, ...]
-    s_start: np.ndarray
-    width: np.ndarray
-    t_offsets: np.ndarray
-
-    @property
-    def n_pieces(self) -> int:
-        return len(self.stars)
-
-    @property
-    def duration(self) -> float:
-        return float(self.t_offsets[-1])
-
-    @property
-    def t_star(self) -> float:
-        return float(sum(p.t_star for p in self.stars))
-
-    @property
-    def rests(self) -> tuple[float, ...]:
-        return (float(self.s_start[0]),) + tuple(float(s0 + p.span) for s0, p in zip(
-            self.s_start, self.stars, strict=True))
-
-    def evaluate(self, t: np.ndarray, jerk: bool = True
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
-        """s, sdot, sddot and (if ``jerk``) sdddot at times ``t`` (M,), clipped to [0, duration]."""
-        t = clip(np.asarray(t, dtype=float), 0.0, self.duration)
-        offs = self.t_offsets
-        out = np.zeros((4, t.size))
-        idx = clip(np.searchsorted(offs, t, side='right') - 1, 0, self.n_pieces - 1)
-        for i, star in enumerate(self.stars):
-            m = idx == i
-            w = float(self.width[i])
-            dur = star.t_star + w
-            r = clip(t[m] - offs[i], 0.0, dur)
-            r = np.where(np.abs(r - dur) <= 1e-12 * max(1.0, self.duration), dur, r)
-            A, B = star.at(r), star.at(r - w)
-            s = clip((A[0] - B[0]) / w, 0.0, star.span)
-            rows = (s, np.maximum((A[1] - B[1]) / w, 0.0), (A[2] - B[2]) / w, (A[3] - B[3]) / w)
-            rest = (r <= 0.0) | (r >= dur)
-            for j, row in enumerate(rows):
-                out[j, m] = np.where(rest, 0.0, row)
-            out[0, m] = self.s_start[i] + np.where(r >= dur, star.span, out[0, m])
-        return out[0], out[1], out[2], (out[3] if jerk else None)
-
-    def times_at(self, s: np.ndarray) -> np.ndarray:
-        """Approximate times (M,) at which the law passes ``s`` (M,): s*'s nodes delayed by w / 2."""
-        ts, ss = [], []
-        for i, star in enumerate(self.stars):
-            ts.append(self.t_offsets[i] + 0.5 * self.width[i] + np.append(star.t0, star.t_star))
-            ss.append(self.s_start[i] + np.append(star.s0, star.span))
-        return np.interp(s, np.concatenate(ss), np.concatenate(ts))
-
-    def jerk_events(self) -> np.ndarray:
-        """Sorted times where sdddot may jump: s*'s step starts, and the same delayed by w."""
-        ev = [self.t_offsets[i] + np.append(star.t0, star.t_star) + shift
-              for i, star in enumerate(self.stars) for shift in (0.0, float(self.width[i]))]
-        return np.unique(np.concatenate(ev + [self.t_offsets]))
-
-
-def build_box_law(pieces: list[tuple[float, StarPiece]], width: np.ndarray) -> BoxLaw:
-    """The box-filtered law of ``pieces`` with window ``width`` (L,) per piece, s."""
-    durations = np.array([p.t_star for _, p in pieces]) + width
-    return BoxLaw(tuple(p for _, p in pieces), np.array([s for s, _ in pieces]), width,
-                  np.concatenate([[0.0], np.cumsum(durations)]))
-
-
-def _crossing_times(law: BoxLaw, t: np.ndarray, s: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    """Times at which the (monotone) law passes ``targets``: bracketed on samples, then Newton."""
+def _crossing_times(law: BoxLaw, t: np.ndarray, s: np.ndarray, targets: np.ndarray,
+                    newton: int = 6) -> np.ndarray:
+    """Times at which the (monotone) law passes ``targets``: bracketed on samples, interpolated
+    linearly there, then ``newton`` Newton steps."""
     j = clip(np.searchsorted(s, targets), 1, s.size - 1)
     lo, hi = t[j - 1], t[j]
-    tc = 0.5 * (lo + hi)
-    for _ in range(6):
+    ds = s[j] - s[j - 1]
+    tc = lo + (hi - lo) * np.where(ds > 0, clip((targets - s[j - 1]) / np.where(ds > 0, ds, 1.0), 0.0, 1.0), 0.5)
+    for _ in range(newton):
         checkpoint()
         sc, sdc, _, _ = law.evaluate(tc, jerk=False)
         step = np.where(sdc > 0, (sc - targets) / np.where(sdc > 0, sdc, 1.0), 0.0)
@@ -249,9 +127,16 @@ class _Checker:
         gap = np.diff(ev)
         keep = gap > 0
         e0, g = ev[:-1][keep], gap[keep]
+        # Between two jerk events everything is smooth: the full check samples both ends (the
+        # one-sided values of a jump) and the middle; the search, which only compares widths,
+        # the middle alone (fine grids, as at blends, have thousands of events).
+        if full:
+            inside: tuple[np.ndarray, ...] = (e0 + 0.01 * g, e0 + 0.5 * g, e0 + 0.99 * g)
+        else:     # at most 2 SEARCH_SAMPLES of them, evenly strided
+            stride = max(1, -(-e0.size // (2 * SEARCH_SAMPLES)))
+            inside = ((e0 + 0.5 * g)[::stride],)
         t = np.concatenate([np.linspace(0.0, law.duration, m),
-                            law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS)),
-                            e0 + 0.01 * g, e0 + 0.5 * g, e0 + 0.99 * g])
+                            law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS)), *inside])
         t = np.unique(t)
 
         def ratios(t: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -297,7 +182,9 @@ class _Checker:
         inner = np.flatnonzero(((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1)
                                 | (ps.cL != ps.cR).any(axis=1)) & ~ps.stop)
         if inner.size:
-            _, sd_b, sdd_b, sddd_b = law.evaluate(_crossing_times(law, t, s, ps.s[inner]))
+            # the search compares widths: the crossing interpolated between its samples suffices
+            crossing = _crossing_times(law, t, s, ps.s[inner], newton=6 if exact else 0)
+            _, sd_b, sdd_b, sddd_b = law.evaluate(crossing)
             assert sddd_b is not None
             for side in ((ps.aL, ps.bL, ps.cL), (ps.aR, ps.bR, ps.cR)):
                 a_b, b_b, c_b = (arr[inner] for arr in side)
@@ -391,12 +278,17 @@ class JerkLimited:
         def search(cap: np.ndarray | None) -> tuple[tuple[BoxLaw, float], np.ndarray, float]:
             """The shortest law over the acceleration scales, for the optimal pass under ``cap``."""
             found: tuple[tuple[BoxLaw, float], np.ndarray, float] | None = None
+            start = WIDTH_SCAN.index(1.0)
             for beta in (1.0,) + ACCEL_SCALES:
                 checkpoint()
                 x = x0 if beta == 1.0 and cap is x_max else topp(
                     fine, vmax * (1.0 - TOPP_MARGIN), beta * amax * (1.0 - TOPP_MARGIN), cap)
                 pieces = star_pieces(fine.s, x)
-                cand = _best_width(pieces, _reference_width(fine, x, pieces, jmax), checker)
+                w_ref = _reference_width(fine, x, pieces, jmax)
+                cand = _best_width(pieces, w_ref, checker, start)
+                # the next scale's scan starts from this one's width factor (nearest grid point)
+                c = float(np.median(cand[0].width / w_ref))
+                start = int(np.argmin([abs(math.log(c / g)) for g in WIDTH_SCAN]))
                 total = cand[1] * cand[0].duration
                 if found is not None and total >= found[0][1] * found[0][0].duration:
                     break
@@ -467,9 +359,10 @@ def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[Box
     return best
 
 
-def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checker: _Checker
-                ) -> tuple[BoxLaw, float]:
-    """The width factor with the shortest checked duration: (law, its stretch)."""
+def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checker: _Checker,
+                start: int = WIDTH_SCAN.index(1.0)) -> tuple[BoxLaw, float]:
+    """The width factor with the shortest checked duration, searched from ``WIDTH_SCAN[start]``:
+    (law, its stretch)."""
     cache: dict[float, tuple[float, BoxLaw, float]] = {}
 
     def total(log_c: float) -> float:
@@ -479,9 +372,18 @@ def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checke
             cache[log_c] = (lam * law.duration, law, lam)
         return cache[log_c][0]
 
+    # The coarse scan walks from ``start`` towards the smaller durations and stops at the first
+    # grid point whose neighbours are both longer (the full scan's choice whenever the durations
+    # on the grid fall, then rise; 3-4 checks instead of 7).
     grid = [math.log(c) for c in WIDTH_SCAN]
-    values = [total(g) for g in grid]
-    i = int(np.argmin(values))
+    i = start
+    while True:
+        checkpoint()
+        near = [j for j in (i - 1, i, i + 1) if 0 <= j < len(grid)]
+        j = min(near, key=lambda k: total(grid[k]))
+        if j == i:
+            break
+        i = j
     lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
     ratio = (math.sqrt(5.0) - 1.0) / 2.0
     a, b = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
@@ -497,4 +399,4 @@ def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checke
     return law, lam
 
 
-__all__ = ['BoxLaw', 'JerkLimited', 'StarPiece', 'build_box_law', 'star_pieces']
+__all__ = ['JerkLimited', 'cruise_cap']
