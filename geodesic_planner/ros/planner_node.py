@@ -64,7 +64,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -96,33 +96,14 @@ from .params import PLANNER_PARAMETERS
 from .joint_states import JointStateListener, RateLimitedWarnings
 from .scene_services import SceneServices
 from .sequence_service import SequenceService
-from .planning import (CODE_NAMES, ConfigError, PlannerConfig, PlanResult, PlanTimeoutError,
-                       build_config, compute_plan, error_code)
+from .planning import (CODE_NAMES, ConfigError, Outcome, PlannerConfig, PlanResult, PlanTimeoutError,
+                       build_config, compute_plan)
 from .service_requests import get_plan_request, plan_trajectory_request
 
 NODE_NAME = 'geodesic_planner'
 #: Longest wait of a plan for an abandoned one to stop, s (its cancellation checkpoints stop it
 #: within tens of ms: docs/testing.md).
 CANCEL_WAIT = 2.0
-
-
-@dataclass(frozen=True)
-class Outcome:
-    """What one service request came to: PlanErrorCode value, reason, and the plan on success."""
-
-    code: int
-    message: str
-    result: PlanResult | None = None
-    published: bool = False
-    fraction: float = -1.0
-    item: int = -1      # a sequence's failing item
-
-    @classmethod
-    def failure(cls, err: GeodesicPlannerError) -> Outcome:
-        """The outcome of a library error: its code, its message and, for a line that cannot be
-        followed, the followable fraction (``PathFollowError.fraction``)."""
-        return cls(error_code(err), str(err), fraction=float(getattr(err, 'fraction', -1.0)),
-                   item=int(getattr(err, 'item', -1)))
 
 
 class GeodesicPlannerNode(Node):

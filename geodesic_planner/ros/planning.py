@@ -173,6 +173,25 @@ class PlanResult:
     notes: tuple[str, ...] = ()
 
 
+@dataclass(frozen=True)
+class Outcome:
+    """What one service request came to: PlanErrorCode value, reason, and the plan on success."""
+
+    code: int
+    message: str
+    result: PlanResult | None = None
+    published: bool = False
+    fraction: float = -1.0
+    item: int = -1      # a sequence's failing item
+
+    @classmethod
+    def failure(cls, err: GeodesicPlannerError) -> Outcome:
+        """The outcome of a library error: its code, its message and, for a line that cannot be
+        followed, the followable fraction (``PathFollowError.fraction``)."""
+        return cls(error_code(err), str(err), fraction=float(getattr(err, 'fraction', -1.0)),
+                   item=int(getattr(err, 'item', -1)))
+
+
 def load_model(robot: str, robot_description: str, base_link: str, tip_link: str) -> Chain:
     """Robot model from a URDF string (when not empty) or a preset name / URDF path.
 
