@@ -19,7 +19,6 @@ import time
 from typing import Protocol
 
 import numpy as np
-from scipy.integrate import solve_bvp
 
 from .errors import BVPError, RequestError
 from .kinematics import Chain
@@ -186,6 +185,7 @@ def kinetic_energy_path(robot: Chain, mass: MassModel, q_a: np.ndarray, q_b: np.
     if np.allclose(q_a, q_b, rtol=0.0, atol=1e-12):
         sol_s, y = s, y0
     else:
+        from scipy.integrate import solve_bvp   # on first use: 0.3 s of start-up a process that never plans saves
         sol = solve_bvp(fun, bc, s, y0, tol=BVP_TOL, max_nodes=MAX_NODES)
         if not sol.success:
             raise BVPError(f'kinetic_energy: the geodesic between the two configurations did not converge '
