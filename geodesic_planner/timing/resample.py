@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from ..core.errors import RequestError
 from ..core.polynomials import evaluate_polynomials, quintic_coefficients
@@ -204,6 +203,7 @@ def resample(
         pos, vel, acc = evaluate_polynomials(_cubic_coefficients(t, q_arr, dq_arr), t, times)
         knot_acc = None  # cubic Hermite acceleration is discontinuous at waypoints: keep evaluated one
     else:
+        from scipy.interpolate import CubicSpline   # on first use: 0.3 s of start-up (scipy.special)
         spline = CubicSpline(t, q_arr, axis=0, bc_type='clamped')
         pos, vel, acc = spline(times), spline(times, 1), spline(times, 2)
         dq_arr = spline(t, 1)
