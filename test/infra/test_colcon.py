@@ -1,12 +1,13 @@
 """colcon build and colcon test of both packages, as a ROS 2 user runs them (scripts/colcon.sh).
 
 One build into a temporary workspace (both packages: the interface package through rosidl, then
-geodesic_planner), then ``colcon test`` of geodesic_planner restricted to the ament linters and
-one ROS test, so that the suite does not run twice. ``colcon test`` runs outside any private
-network namespace; to show what happens there, it runs in a nested namespace that has an
-interface besides ``lo`` (nothing leaves it): the ROS test must be skipped with its reason, and
-``colcon test-result`` must report no failure. About 40 s on 2 cores; part of the README's
-test command, so CI runs the colcon build and the ament linters on every submission.
+geodesic_planner), then ``colcon test`` of geodesic_planner restricted to the ament pep257 linter,
+the lint configuration check and one ROS test, so that the suite does not run twice (flake8 runs
+in the suite itself). ``colcon test`` runs outside any private network namespace; to show what
+happens there, it runs in a nested namespace that has an interface besides ``lo`` (nothing leaves
+it): the ROS test must be skipped with its reason, and ``colcon test-result`` must report no
+failure. About 50 s on 2 cores; part of the README's test command, so CI runs the colcon build
+and an ament linter through colcon on every submission.
 """
 from __future__ import annotations
 
@@ -23,6 +24,10 @@ SCRIPT = ROOT / 'scripts' / 'colcon.sh'
 #: Upper bound of one colcon call, s (a cold build takes about 30 s here).
 TIMEOUT = 300.0
 ROS_TEST = 'test/ros/test_launch.py::test_two_namespaces_side_by_side'
+#: The ament linter tests colcon test runs: pep257 through ament and the committed configuration
+#: (flake8, 10 s, runs in the suite itself: test/infra/test_ament_lint.py).
+AMENT_LINT_TESTS = ('test/infra/test_ament_lint.py::test_pep257',
+                    'test/infra/test_ament_lint.py::test_lint_configuration_is_committed')
 SKIP_REASON = 'ros: not inside a loopback-only network namespace'
 
 
@@ -69,19 +74,19 @@ def test_colcon_build_and_test_both_packages(tmp_path: Path) -> None:
     assert [Path(p).parent for s in module.describe() for p in s.parameter_files] == [share / 'config'] * 2
 
     tested = colcon(ws, 'test', '--packages-select', 'geodesic_planner', '--event-handlers', 'console_direct+',
-                    '--pytest-args', '-p', 'no:cacheprovider', '-rs', 'test/infra/test_ament_lint.py', ROS_TEST,
+                    '--pytest-args', '-p', 'no:cacheprovider', '-rs', *AMENT_LINT_TESTS, ROS_TEST,
                     outside_netns=True)
     if tested.returncode != 0 and 'Operation not permitted' in tested.stderr:
         pytest.skip(f'cannot create a nested network namespace here: {tested.stderr.strip()}')
     out = tested.stdout + tested.stderr
     assert tested.returncode == 0, out
-    assert '3 passed, 1 skipped' in out, out
+    assert '2 passed, 1 skipped' in out, out
     skipped = [line for line in out.splitlines() if line.startswith('SKIPPED') and 'test_launch.py' in line]
     assert len(skipped) == 1 and SKIP_REASON in skipped[0] and 'GEODESIC_PLANNER_NETNS=off' in skipped[0], out
 
     result = colcon(ws, 'test-result', '--all')
     assert result.returncode == 0, result.stdout + result.stderr
-    assert '4 tests, 0 errors, 0 failures, 1 skipped' in result.stdout, result.stdout
+    assert '3 tests, 0 errors, 0 failures, 1 skipped' in result.stdout, result.stdout
     # build/, install/, log/ stayed out (other workers of a parallel run may add their own
     # caches meanwhile, e.g. .hypothesis in a fresh clone: only colcon's names are looked for)
     added = {p.name for p in ROOT.iterdir()} - set(before)
