@@ -318,7 +318,7 @@ def solve_geodesic_bvp(
     try:
         with warnings.catch_warnings(), np.errstate(all='ignore'):
             warnings.simplefilter('ignore')
-            from scipy.integrate import solve_bvp   # on first use: 0.3 s of start-up a process that never plans saves
+            from scipy.integrate import solve_bvp   # on first use: 0.3 s less start-up where nothing is planned
             sol = solve_bvp(fun, bc, s_nodes, y0, fun_jac=fun_jac, bc_jac=bc_jac, tol=tol,
                             max_nodes=max_nodes, bc_tol=1e-10)
     except SingularMetricError as err:

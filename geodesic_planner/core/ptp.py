@@ -185,7 +185,7 @@ def kinetic_energy_path(robot: Chain, mass: MassModel, q_a: np.ndarray, q_b: np.
     if np.allclose(q_a, q_b, rtol=0.0, atol=1e-12):
         sol_s, y = s, y0
     else:
-        from scipy.integrate import solve_bvp   # on first use: 0.3 s of start-up a process that never plans saves
+        from scipy.integrate import solve_bvp   # on first use: 0.3 s less start-up where nothing is planned
         sol = solve_bvp(fun, bc, s, y0, tol=BVP_TOL, max_nodes=MAX_NODES)
         if not sol.success:
             raise BVPError(f'kinetic_energy: the geodesic between the two configurations did not converge '

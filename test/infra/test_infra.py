@@ -279,6 +279,17 @@ def test_each_xdist_worker_has_a_ros_domain_of_its_own() -> None:
         assert os.environ['ROS_DOMAIN_ID'] == str(worker_domain(worker))
 
 
+def test_long_first_names_existing_modules() -> None:
+    # a renamed or removed module would silently drop out of the parallel run's ordering
+    spec = importlib.util.spec_from_file_location('suite_conftest', ROOT / 'test' / 'conftest.py')
+    assert spec is not None and spec.loader is not None
+    suite_conftest = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(suite_conftest)
+    LONG_FIRST = suite_conftest.LONG_FIRST
+    missing = [p for p in LONG_FIRST if not (ROOT / p).is_file()]
+    assert not missing and len(set(LONG_FIRST)) == len(LONG_FIRST), missing
+
+
 def test_test_sh_runs_workers_unless_told_otherwise() -> None:
     text = (SCRIPTS / 'test.sh').read_text()
     assert 'GP_TEST_WORKERS:-3' in text and '--dist loadscope' in text
