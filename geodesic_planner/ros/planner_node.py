@@ -69,7 +69,6 @@ from typing import Any
 
 import numpy as np
 import rclpy
-import scipy.integrate  # noqa: F401 the BVP solver, loaded at start rather than by the first plan
 from builtin_interfaces.msg import Time
 from geodesic_planner_interfaces.msg import PlanErrorCode
 from geodesic_planner_interfaces.srv import PlanTrajectory
