@@ -20,6 +20,7 @@ from typing import Protocol
 import numpy as np
 
 from .cancel import checkpoint
+from .chunks import in_chunks
 from .errors import BVPError, SingularMetricError
 from .kinematics import Chain, taylor3
 from .metric import Metric
@@ -35,6 +36,12 @@ class PathEquations(Protocol):
 
     def acceleration(self, q: np.ndarray, v: np.ndarray) -> np.ndarray: ...
     def jerk(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+#: Batches of kinematics the equations remember (:meth:`GeodesicEquations._generators`): a
+#: solve_bvp step evaluates the right-hand side, then its Jacobian, at the same points, in blocks
+#: of :data:`~.chunks.CHUNK` rows; 8 blocks hold meshes of up to 2048 points.
+GENERATOR_CACHE = 8
 
 
 class GeodesicEquations:
@@ -72,7 +79,7 @@ class GeodesicEquations:
         if hit is not None:
             return hit
         out = self.robot.generators(q)
-        if len(self._cache) >= 4:
+        if len(self._cache) >= GENERATOR_CACHE:
             self._cache.pop(next(iter(self._cache)))
         self._cache[key] = out
         return out
@@ -144,6 +151,9 @@ class GeodesicEquations:
         Raises:
             SingularMetricError: G is singular at one of the configurations.
         """
+        return in_chunks(self._jerk, np.ascontiguousarray(q, dtype=float), np.asarray(v, dtype=float))
+
+    def _jerk(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         q, X, T, Y, YO, G, W, C = self._terms(q, v)
         # Taylor coefficients c1, c2, c3 of e^{W_1 t} ... e^{W_n t} (pose derivatives d! c_d T).
         _, c2, c3 = taylor3(W)
@@ -169,6 +179,11 @@ class GeodesicEquations:
         Raises:
             SingularMetricError: G is singular at one of the configurations.
         """
+        return in_chunks(functools.partial(self._evaluate, jacobians=jacobians),
+                         np.ascontiguousarray(q, dtype=float), np.asarray(v, dtype=float))
+
+    def _evaluate(self, q: np.ndarray, v: np.ndarray, jacobians: bool
+                  ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         q, X, T, Y, YO, G, W, C = self._terms(q, v)
         Tn = T[:, None]
         P = C - W                                    # Σ_{j<k} W_j

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .chunks import in_chunks
 from .errors import KinematicsError, RequestError
 from .transforms import check_transform, hat
 
@@ -226,6 +227,9 @@ class Chain:
             (Tj, T): Tj (N, dof, 4, 4) base->joint-frame transforms (the frame in which joint i's
             axis is given, before its motion), T (N, 4, 4) base->tool.
         """
+        return in_chunks(self._frames, q)
+
+    def _frames(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         N = q.shape[0]
         F = self._fixed[1:]                      # (dof, 4, 4): F_{i+1}
         # M_i F_{i+1}, M_i a rotation about / translation along z: row operations on F_{i+1},
@@ -298,7 +302,10 @@ class Chain:
         Returns:
             (X, T): X (N, dof, 4, 4) with ``∂T/∂q_k = X_k T``; T (N, 4, 4).
         """
-        Tj, T = self.frames(q)
+        return in_chunks(self._generators, q)
+
+    def _generators(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        Tj, T = self._frames(q)
         u = Tj[..., :3, 2]  # joint axes in the base frame (all axes were folded onto z)
         p = Tj[..., :3, 3]
         X = np.zeros(Tj.shape)
