@@ -38,9 +38,7 @@ class PathEquations(Protocol):
     def jerk(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
 
-#: Batches of kinematics the equations remember (:meth:`GeodesicEquations._generators`): a
-#: solve_bvp step evaluates the right-hand side, then its Jacobian, at the same points, in blocks
-#: of :data:`~.chunks.CHUNK` rows; 8 blocks hold meshes of up to 2048 points.
+#: Blocks of kinematics remembered (:meth:`GeodesicEquations._generators`): 8 blocks of CHUNK rows.
 GENERATOR_CACHE = 8
 
 
@@ -61,19 +59,15 @@ class GeodesicEquations:
 
     @property
     def _cache(self) -> dict[bytes, tuple[np.ndarray, np.ndarray]]:
-        if not hasattr(self._local, 'gen'):
-            self._local.gen = {}
-        return self._local.gen
+        return self._local.__dict__.setdefault('gen', {})
 
     @property
     def _acc_cache(self) -> dict[bytes, np.ndarray]:
-        if not hasattr(self._local, 'acc'):
-            self._local.acc = {}
-        return self._local.acc
+        return self._local.__dict__.setdefault('acc', {})
 
     def _generators(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """robot.generators(q), remembering the last few batches (solve_bvp evaluates the
-        right-hand side and its Jacobian at the same points)."""
+        """robot.generators(q), remembering the last few blocks (solve_bvp evaluates the
+        right-hand side and its Jacobian at the same points, both in blocks of CHUNK rows)."""
         key = q.tobytes()
         hit = self._cache.get(key)
         if hit is not None:
