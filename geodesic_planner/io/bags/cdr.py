@@ -21,7 +21,17 @@ if TYPE_CHECKING:
 JOINT_TRAJECTORY = 'trajectory_msgs/msg/JointTrajectory'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 
-__all__ = ['JOINT_STATE', 'JOINT_TRAJECTORY', 'from_cdr', 'make_typestore', 'parse_qos_text', 'qos_profile', 'to_cdr']
+__all__ = ['JOINT_STATE', 'JOINT_TRAJECTORY', 'from_cdr', 'load_yaml', 'make_typestore', 'parse_qos_text',
+           'qos_profile', 'to_cdr']
+
+#: PyYAML's safe loader, through libyaml where PyYAML was built with it (its wheels are): a bag's
+#: metadata and QoS strings are read 5-10x faster, with the same results and the same errors.
+_SAFE_LOADER: Any = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+
+
+def load_yaml(text: str | bytes) -> Any:  # noqa: ANN401
+    """``yaml.safe_load(text)`` with libyaml when available; raises yaml.YAMLError likewise."""
+    return yaml.load(text, Loader=_SAFE_LOADER)
 
 
 def make_typestore() -> Typestore:
@@ -93,7 +103,7 @@ def parse_qos_text(text: str | bytes | None) -> list[Qos]:
     if not text:
         return []
     try:
-        items = yaml.safe_load(text)
+        items = load_yaml(text)
     except yaml.YAMLError:
         return []
     if not isinstance(items, list):

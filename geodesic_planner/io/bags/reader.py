@@ -28,7 +28,7 @@ from rosbags.typesys import TypesysError
 
 from ...core.errors import BagError
 from ...timing.validate import trajectory_problems
-from .cdr import JOINT_TRAJECTORY, make_typestore
+from .cdr import JOINT_TRAJECTORY, load_yaml, make_typestore
 
 if TYPE_CHECKING:
     from rosbags.interfaces import Connection
@@ -353,7 +353,7 @@ def bag_info(path: str | os.PathLike[str]) -> BagInfo:
     """
     src = OpenBag(path)
     try:
-        meta = yaml.safe_load((src.path / 'metadata.yaml').read_text())
+        meta = load_yaml((src.path / 'metadata.yaml').read_text())
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
         msg = f'cannot read {src.path / "metadata.yaml"}: {err}'
         raise BagError(msg) from err
