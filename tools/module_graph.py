@@ -18,6 +18,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: Layers from the bottom up; a module may import modules of its own layer or of layers below.
 LAYERS = ('core', 'timing', 'io', 'ros', 'cli')
+#: Rows whose labels are closer than this (plot units) alternate between two lines, STAGGER
+#: above and below the row.
+CROWDED = 0.6
+STAGGER = 0.14
 #: Layers that may not be imported by each other although both sit above ``io``.
 SIDE_BY_SIDE = {('ros', 'cli'), ('cli', 'ros')}
 
@@ -113,8 +117,11 @@ def draw(output: Path, root: Path = ROOT) -> None:
     pos: dict[str, tuple[float, float]] = {}
     for layer, members in rows.items():
         x0, width = (0.0, 14.0) if layer not in ('ros', 'cli') else ((0.0, 8.0) if layer == 'ros' else (8.6, 5.4))
+        # a crowded row alternates between two lines, so that neighbouring labels do not overlap
+        stagger = STAGGER if width / max(len(members), 1) < CROWDED else 0.0
         for i, m in enumerate(members):
-            pos[m] = (x0 + width * (i + 0.5) / max(len(members), 1), y_of[layer])
+            pos[m] = (x0 + width * (i + 0.5) / max(len(members), 1),
+                      y_of[layer] + (stagger if i % 2 else -stagger))
     fig = Figure(figsize=(15, 7.5), dpi=150)
     ax = fig.add_subplot()
     colours = {'core': '#d9e8fb', 'timing': '#dcf2dc', 'io': '#fff0c8', 'ros': '#f6d7d7', 'cli': '#e8dcf5'}
@@ -129,7 +136,7 @@ def draw(output: Path, root: Path = ROOT) -> None:
             style = {'arrowstyle': '->', 'lw': 0.6, 'alpha': 0.4,
                      'color': 'tab:red' if not imp.top_level else 'grey',
                      'linestyle': '--' if not imp.top_level else '-'}
-            if y1 == y2:   # within a layer: an arc below the row
+            if layer_of(src) == layer_of(dst):   # within a layer: an arc below the row
                 style['connectionstyle'] = f'arc3,rad={0.25 if x2 > x1 else -0.25}'
                 ax.annotate('', xy=(x2, y2 - 0.1), xytext=(x1, y1 - 0.1), arrowprops=style)
             else:
