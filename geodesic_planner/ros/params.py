@@ -21,7 +21,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..io.bags import STORAGES
+from ..io.storages import STORAGES
 from ..timing.resample import MAX_POINTS
 
 #: Robot used when neither ``robot`` nor ``robot_description`` is given: the paper's planar 3R arm.

@@ -37,6 +37,7 @@ from rosbags.interfaces import Qos
 from rosbags.rosbag2 import StoragePlugin, WriterError
 
 from ...core.errors import BagError
+from ..storages import STORAGE_SUFFIX, STORAGES
 from .cdr import make_typestore, qos_profile
 from .storage import FlushableWriter
 
@@ -46,8 +47,6 @@ if TYPE_CHECKING:
     from rosbags.interfaces import Connection
     from rosbags.typesys.store import Typestore
 
-STORAGES = ('mcap', 'sqlite3')
-STORAGE_SUFFIX = {'mcap': '.mcap', 'sqlite3': '.db3'}
 PLUGINS = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
 
 __all__ = ['STORAGES', 'STORAGE_SUFFIX', 'BagRecorder', 'new_bag_path']
