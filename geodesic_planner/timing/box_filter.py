@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._arrays import clip
+from .checks import distinct_times
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,7 +134,7 @@ class BoxLaw:
         """Sorted times where sdddot may jump: s*'s step starts, and the same delayed by w."""
         ev = [self.t_offsets[i] + np.append(star.t0, star.t_star) + shift
               for i, star in enumerate(self.stars) for shift in (0.0, float(self.width[i]))]
-        return np.unique(np.concatenate(ev + [self.t_offsets]))
+        return distinct_times(np.concatenate(ev + [self.t_offsets]))
 
 
 def build_box_law(pieces: list[tuple[float, StarPiece]], width: np.ndarray) -> BoxLaw:

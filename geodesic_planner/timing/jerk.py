@@ -42,7 +42,7 @@ from ._arrays import clip
 from .law import final_duration
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
-from .checks import local_cap, peak_samples
+from .checks import distinct_times, local_cap, peak_samples
 from .tuning import CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS, TOPP_MARGIN
 from .tool import ToolRows, tool_rows
 from .topp import topp
@@ -137,7 +137,7 @@ class _Checker:
             inside = ((e0 + 0.5 * g)[::stride],)
         t = np.concatenate([np.linspace(0.0, law.duration, m),
                             law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS)), *inside])
-        t = np.unique(t)
+        t = distinct_times(t)
 
         def ratios(t: np.ndarray) -> tuple[np.ndarray, ...]:
             s, sd, sdd, sddd = law.evaluate(t)
