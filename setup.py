@@ -1,7 +1,7 @@
 """ament_python packaging for geodesic_planner (also a plain pip-installable library)."""
 from glob import glob
 
-from setuptools import find_packages, setup
+from setuptools import Extension, find_packages, setup
 
 PACKAGE = 'geodesic_planner'
 
@@ -17,6 +17,10 @@ setup(
         ('share/' + PACKAGE + '/launch', sorted(glob('launch/*.launch.py'))),
         ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml'))),
     ],
+    # The time laws' compiled kernels (plain C, loaded with ctypes; timing/kernels.py). Optional: without a
+    # compiler the build goes on and the laws run their numpy code, with the same results.
+    ext_modules=[Extension(PACKAGE + '.timing._kernels', sources=[PACKAGE + '/timing/_kernels.c'],
+                           extra_compile_args=['-O2', '-fno-math-errno'], optional=True)],
     python_requires='>=3.10',
     install_requires=['numpy>=1.24', 'scipy>=1.10', 'pyyaml>=6', 'pin>=3.0'],
     extras_require={

@@ -8,11 +8,13 @@ lasts ``T* + w`` and starts and ends at rest. Units: s, path parameter s, 1/s, 1
 """
 from __future__ import annotations
 
+import functools
 import itertools
 from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels
 from ._arrays import clip
 from .checks import distinct_times
 
@@ -101,6 +103,8 @@ class BoxLaw:
     def evaluate(self, t: np.ndarray, jerk: bool = True
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """s, sdot, sddot and (if ``jerk``) sdddot at times ``t`` (M,), clipped to [0, duration]."""
+        if kernels.active() and np.ndim(t) == 1:
+            return kernels.evaluate(self.tables, np.asarray(t, dtype=float), jerk)
         t = clip(np.asarray(t, dtype=float), 0.0, self.duration)
         offs = self.t_offsets
         out = np.zeros((4, t.size))
@@ -121,6 +125,16 @@ class BoxLaw:
                 out[j, m] = np.where(rest, 0.0, row)
             out[0, m] = self.s_start[i] + np.where(r >= dur, star.span, out[0, m])
         return out[0], out[1], out[2], (out[3] if jerk else None)
+
+    @functools.cached_property
+    def tables(self) -> kernels.LawTables:
+        """All pieces' s* in flat tables, for the compiled :func:`.kernels.evaluate`."""
+        ends = np.array([[p.t_star for p in self.stars], [p.span for p in self.stars],
+                         [p.S1_end for p in self.stars], self.s_start.tolist()], dtype=float)
+        first = np.concatenate([[0], np.cumsum([p.t0.size for p in self.stars])]).astype(np.int64)
+        steps = (np.concatenate([getattr(p, name) for p in self.stars]).astype(float)
+                 for name in ('t0', 's0', 'v0', 'u', 'S1'))
+        return kernels.box_tables(self.t_offsets, self.width, ends, first, tuple(steps))
 
     def times_at(self, s: np.ndarray) -> np.ndarray:
         """Approximate times (M,) at which the law passes ``s`` (M,): s*'s nodes delayed by w / 2."""

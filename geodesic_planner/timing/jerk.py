@@ -31,6 +31,7 @@ q(s) never changes, only s(t).
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -38,6 +39,7 @@ import numpy as np
 
 from ..core.cancel import checkpoint
 from ..core.errors import LimitError
+from . import kernels
 from ._arrays import clip
 from .law import final_duration
 from .types import JointLimits, PathLike
@@ -104,6 +106,12 @@ class _Checker:
         target = 1.0 - CHECK_MARGIN
         return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target))
 
+    @functools.cached_property
+    def _limits(self) -> kernels.Pinned:
+        lim = self.limits
+        jmax = lim.max_jerk if lim.max_jerk is not None else np.full(lim.max_velocity.size, np.inf)
+        return kernels.limit_tables(lim.max_velocity, lim.max_acceleration, jmax)
+
     def need(self, law: BoxLaw) -> tuple[np.ndarray, np.ndarray]:
         """Check times (M,) and each one's speed factor over the limits (interpolated path
         derivatives): max(v ratio, sqrt(a ratio), cbrt(j ratio)) / (1 - CHECK_MARGIN)."""
@@ -140,13 +148,18 @@ class _Checker:
         t = distinct_times(t)
 
         def ratios(t: np.ndarray) -> tuple[np.ndarray, ...]:
-            s, sd, sdd, sddd = law.evaluate(t)
-            assert sddd is not None
-            a, b = ps.interpolate_t(s)
-            c = ps.third_derivative_t(s)
-            rv_t = (np.abs(a * sd) / vmax[:, None]).max(axis=0)
-            ra_t = (np.abs(a * sdd + b * sd**2) / amax[:, None]).max(axis=0)
-            rj_t = (np.abs(a * sddd + 3.0 * b * (sd * sdd) + c * sd**3) / jmax[:, None]).max(axis=0)
+            if kernels.active():
+                s, sd, sdd, sddd, rv_t, ra_t, rj_t = kernels.ratios(law.tables, ps.kernel_tables3, self._limits,
+                                                                    t, jerk=True)
+            else:
+                s, sd, sdd, jerk = law.evaluate(t)
+                assert jerk is not None
+                sddd = jerk
+                a, b = ps.interpolate_t(s)
+                c = ps.third_derivative_t(s)
+                rv_t = (np.abs(a * sd) / vmax[:, None]).max(axis=0)
+                ra_t = (np.abs(a * sdd + b * sd**2) / amax[:, None]).max(axis=0)
+                rj_t = (np.abs(a * sddd + 3.0 * b * (sd * sdd) + c * sd**3) / jmax[:, None]).max(axis=0)
             if self.tool is not None:
                 rv_t = np.maximum(rv_t, self.tool.ratios(s, sd))
             need = np.maximum(np.maximum(rv_t, np.sqrt(ra_t)), np.cbrt(rj_t))

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..core.cancel import checkpoint
 from ..core.errors import LimitError
+from . import kernels
 from ._arrays import clip
 
 if TYPE_CHECKING:
@@ -75,7 +76,7 @@ class PathSamples:
                             merge(self.bL, b), merge(self.bR, b), zeros, zeros, stop)
 
     @functools.cached_property
-    def _coef(self) -> np.ndarray:
+    def coef(self) -> np.ndarray:
         """Per-step cubic coefficients of q' and q'' in ``r = s - s_k``: (8, dof, n).
 
         Rows 0..3: q' = p0 + r (p1 + r (p2 + r p3)); rows 4..7 the same for q''. The cubic
@@ -91,7 +92,7 @@ class PathSamples:
         return np.ascontiguousarray(np.stack(rows))
 
     @functools.cached_property
-    def _coef3(self) -> np.ndarray:
+    def coef3(self) -> np.ndarray:
         """Per step, ``q''' = d0 + r (d1 + r d2)`` in ``r = s - s_k``: (3, dof, n), the derivative
         of the cubic Hermite of q'' (values q'', slopes q''' at both ends of a step)."""
         h = np.diff(self.s)
@@ -99,9 +100,19 @@ class PathSamples:
         slope = (v1 - v0) / h
         return np.stack([m0, 2.0 * (3.0 * slope - 2.0 * m0 - m1) / h, 3.0 * (m0 + m1 - 2.0 * slope) / (h * h)])
 
+    @functools.cached_property
+    def kernel_tables(self) -> kernels.Pinned:
+        """The cubic-Hermite tables of q' and q'' for the compiled :func:`.kernels.ratios`."""
+        return kernels.path_tables(self.s, self.coef)
+
+    @functools.cached_property
+    def kernel_tables3(self) -> kernels.Pinned:
+        """:attr:`kernel_tables` with the third derivative (for the jerk ratios)."""
+        return kernels.path_tables(self.s, self.coef, self.coef3)
+
     def third_derivative_t(self, s: np.ndarray) -> np.ndarray:
         """q''' at sorted ``s`` (M,), consistent with :meth:`interpolate_t`'s q''; (dof, M)."""
-        coef = self._coef3
+        coef = self.coef3
         n = self.s.size - 1
         k = clip(np.searchsorted(self.s, s, side='right') - 1, 0, n - 1)
         counts = np.bincount(k, minlength=n)
@@ -125,7 +136,7 @@ class PathSamples:
     def _interpolate_steps(self, k: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """q' and q'' at ``s_k + r`` on steps ``k`` (M,); each (dof, M)."""
         n = self.s.size - 1
-        coef = self._coef
+        coef = self.coef
         if k.size > 1 and bool(np.all(k[1:] >= k[:-1])):  # sorted: repeating is cheaper
             counts = np.bincount(k, minlength=n)
 

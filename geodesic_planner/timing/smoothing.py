@@ -35,6 +35,7 @@ import numpy as np
 
 from ..core.cancel import checkpoint
 from ..core.errors import LimitError
+from . import kernels
 from ._arrays import clip
 from .law import final_duration
 from .types import JointLimits, PathLike
@@ -88,6 +89,11 @@ class PiecewiseLaw:
         """The segment table three times side by side, (6, 3 S) (one copy per shift of the kernel)."""
         return np.tile(self.seg, 3)
 
+    @functools.cached_property
+    def kernel_tables(self) -> kernels.LawTables:
+        """The tables for the compiled :func:`.kernels.evaluate`."""
+        return kernels.piecewise_tables(self.t_offsets, self.pieces, self.key_step, self.seg_key, self.seg)
+
     @property
     def duration(self) -> float:
         return float(self.t_offsets[-1])
@@ -113,6 +119,8 @@ class PiecewiseLaw:
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """s, sdot, sddot and (if ``jerk``) sdddot at times t (M,) in [0, duration] (clipped)."""
         t = np.asarray(t, dtype=float)
+        if kernels.active() and t.ndim == 1:
+            return kernels.evaluate(self.kernel_tables, t, jerk)
         offs = self.t_offsets
         nl = self.n_pieces
         if nl == 1:
@@ -407,6 +415,12 @@ def _ratios(ps: PathSamples, law: PiecewiseLaw, t: np.ndarray, vmax: np.ndarray,
             tool: ToolRows | None) -> tuple[np.ndarray, ...]:
     """At sorted times t (M,): s, sdot, sddot and the largest velocity and acceleration ratios
     to the limits over the joints (and the tool rows), q' and q'' interpolated from ``ps``."""
+    if kernels.active():
+        s, sd, sdd, rv_t, ra_t = kernels.ratios(law.kernel_tables, ps.kernel_tables,
+                                                kernels.limit_tables(vmax, amax), t, jerk=False)
+        if tool is not None:
+            rv_t = np.maximum(rv_t, tool.ratios(s, sd))
+        return s, sd, sdd, rv_t, ra_t
     s, sd, sdd, _ = law.evaluate(t, jerk=False)
     a, b = ps.interpolate_t(s)
     vel = a * sd

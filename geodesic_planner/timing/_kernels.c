@@ -1,0 +1,242 @@
+/* Compiled kernels of the time laws' hot loops (loaded with ctypes by kernels.py).
+ *
+ * Each function does, sample by sample, what the numpy code beside it does on whole arrays (same
+ * formulas, same order of operations): the numpy code stays the fallback and the reference the
+ * tests compare with. Arrays are C-contiguous float64; sizes are int64. No allocation, no Python.
+ *
+ *   gp_piecewise_evaluate  smoothing.PiecewiseLaw.evaluate (the smoothed law s(t) and derivatives)
+ *   gp_box_evaluate        box_filter.BoxLaw.evaluate (the box-filtered law of the jerk law)
+ *   gp_hermite_ratios      sampling.PathSamples.interpolate_t (+ third_derivative_t) and the
+ *                          per-sample ratios to the velocity, acceleration (and jerk) limits
+ *   gp_backward_pass       topp: hi_k = min(static_k, min_j A_kj hi_{k+1} + B_kj), hi_n = 0
+ *   gp_forward_pass        topp: the greedy forward pass
+ *
+ * The module init below only makes the file importable as an extension module (so that setuptools
+ * builds it with the package); it defines no Python functions.
+ */
+#include <Python.h>
+#include <math.h>
+#include <stdint.h>
+
+typedef int64_t idx_t;
+
+/* Number of entries of a (size n) that are <= x (numpy searchsorted(a, x, side='right')). */
+static idx_t upper(const double *a, idx_t n, double x)
+{
+    idx_t lo = 0, hi = n;
+    while (lo < hi) {
+        idx_t mid = lo + (hi - lo) / 2;
+        if (a[mid] <= x) lo = mid + 1; else hi = mid;
+    }
+    return lo;
+}
+
+/* Number of entries of a that are < x (numpy searchsorted(a, x, side='left')). */
+static idx_t lower(const double *a, idx_t n, double x)
+{
+    idx_t lo = 0, hi = n;
+    while (lo < hi) {
+        idx_t mid = lo + (hi - lo) / 2;
+        if (a[mid] < x) lo = mid + 1; else hi = mid;
+    }
+    return lo;
+}
+
+/* np.maximum / np.minimum: NaN in either argument gives NaN (fmax and fmin would drop it). */
+static double nmax(double a, double b) { return (isnan(a) || a >= b) ? a : b; }
+static double nmin(double a, double b) { return (isnan(a) || a <= b) ? a : b; }
+static double clampd(double x, double lo, double hi) { return nmin(nmax(x, lo), hi); }
+static idx_t clampi(idx_t x, idx_t lo, idx_t hi) { return x < lo ? lo : (x > hi ? hi : x); }
+
+/* The smoothed law at times t (m,). pieces (6, L): tau, duration, s_start, span, s_end, T*;
+ * seg (6, S): start, s0, v0, u, S1, S2 of each s* segment, searched by seg_key (S,).
+ * Outputs s, sd, sdd and (when sddd is not NULL) sddd, each (m,). */
+void gp_piecewise_evaluate(idx_t m, const double *t, idx_t L, const double *offs, const double *pieces,
+                           double key_step, idx_t S, const double *seg_key, const double *seg,
+                           double *s_out, double *sd_out, double *sdd_out, double *sddd_out)
+{
+    const double duration = offs[L];
+    const double snap = 1e-12 * fmax(1.0, duration);
+    for (idx_t i = 0; i < m; ++i) {
+        double ti = t[i], local, key_off = 0.0;
+        idx_t p = 0;
+        if (L == 1) {
+            local = clampd(ti, 0.0, duration);
+        } else {
+            idx_t j = clampi(lower(offs, L + 1, ti), 1, L);
+            double near = fabs(ti - offs[j - 1]) <= fabs(ti - offs[j]) ? offs[j - 1] : offs[j];
+            if (fabs(ti - near) <= snap) ti = near;
+            p = clampi(upper(offs, L + 1, ti) - 1, 0, L - 1);
+            double dur = pieces[L + p];
+            local = ti >= offs[p + 1] ? dur : ti - offs[p];
+            local = clampd(local, 0.0, dur);
+            key_off = (double)p * key_step;
+        }
+        const double tau = pieces[p], dur = pieces[L + p], s_start = pieces[2 * L + p];
+        const double span = pieces[3 * L + p], s_end = pieces[4 * L + p];
+        double w2[3], w1[3], w0[3], w3[3];
+        double q = local;
+        for (int k = 0; k < 3; ++k) {
+            if (k == 1) q = local - tau;
+            else if (k == 2) q = q - tau;
+            double key = L > 1 ? q + key_off : q;
+            idx_t g = upper(seg_key, S, key) - 1;
+            if (g < 0) g = 0;
+            const double start = seg[g], s0 = seg[S + g], v0 = seg[2 * S + g], u = seg[3 * S + g];
+            const double S1 = seg[4 * S + g], S2 = seg[5 * S + g];
+            const double r = q - start, ru = r * u;
+            double a = ru / 24.0;
+            a += v0 / 6.0; a *= r; a += 0.5 * s0; a *= r; a += S1; a *= r; a += S2;
+            w2[k] = a;
+            double b = ru / 6.0;
+            b += 0.5 * v0; b *= r; b += s0; b *= r; b += S1;
+            w1[k] = b;
+            double c = 0.5 * ru;
+            c += v0; c *= r; c += s0;
+            w0[k] = c;
+            w3[k] = ru + v0;
+        }
+        const double inv = 1.0 / (tau * tau);
+#define SECOND_DIFFERENCE(y) (((y[0] - 2.0 * y[1]) + y[2]) * inv)
+        double s = s_start + clampd(SECOND_DIFFERENCE(w2), 0.0, span);
+        double sd = nmax(SECOND_DIFFERENCE(w1), 0.0);
+        double sdd = SECOND_DIFFERENCE(w0);
+        double sddd = SECOND_DIFFERENCE(w3);
+#undef SECOND_DIFFERENCE
+        if (local >= dur) { s = s_end; sd = sdd = sddd = 0.0; }
+        else if (local <= 0.0) { s = s_start; sd = sdd = sddd = 0.0; }
+        s_out[i] = s;
+        sd_out[i] = sd;
+        sdd_out[i] = sdd;
+        if (sddd_out) sddd_out[i] = sddd;
+    }
+}
+
+/* s* of one piece at local time r: integral S1, s* - s_start, sdot*, sddot* (box_filter.StarPiece.at).
+ * The piece's steps are t0, s0, v0, u, S1 (each n entries); t_star, span, S1_end its end. */
+static void star_at(double r, idx_t n, const double *t0, const double *s0, const double *v0, const double *u,
+                    const double *S1, double t_star, double span, double S1_end, double out[4])
+{
+    idx_t k = clampi(upper(t0, n, r) - 1, 0, n - 1);
+    double d = r - t0[k];
+    double a = s0[k], v = v0[k], uk = u[k];
+    double I = S1[k] + d * (a + d * (0.5 * v + d * uk / 6.0));
+    double s = a + d * (v + 0.5 * uk * d);
+    double vel = v + uk * d;
+    if (r <= 0.0) { out[0] = 0.0; out[1] = 0.0; out[2] = 0.0; out[3] = 0.0; return; }
+    if (r >= t_star) { out[0] = S1_end + span * (r - t_star); out[1] = span; out[2] = 0.0; out[3] = 0.0; return; }
+    out[0] = I; out[1] = s; out[2] = vel; out[3] = uk;
+}
+
+/* The box-filtered law at times t (m,). Pieces: L of them, piece i's steps at first[i] ..
+ * first[i + 1] - 1 of the step tables t0, s0, v0, u, S1; ends (4, L): t_star, span, S1_end, s_start;
+ * width (L,), offs (L + 1,). Outputs as gp_piecewise_evaluate. */
+void gp_box_evaluate(idx_t m, const double *t, idx_t L, const double *offs, const double *width,
+                     const double *ends, const idx_t *first, const double *t0, const double *s0,
+                     const double *v0, const double *u, const double *S1,
+                     double *s_out, double *sd_out, double *sdd_out, double *sddd_out)
+{
+    const double duration = offs[L];
+    const double snap = 1e-12 * fmax(1.0, duration);
+    for (idx_t i = 0; i < m; ++i) {
+        double ti = clampd(t[i], 0.0, duration);
+        idx_t p = clampi(upper(offs, L + 1, ti) - 1, 0, L - 1);
+        const double w = width[p], t_star = ends[p], span = ends[L + p], S1_end = ends[2 * L + p];
+        const double s_start = ends[3 * L + p];
+        const double dur = t_star + w;
+        double r = clampd(ti - offs[p], 0.0, dur);
+        if (fabs(r - dur) <= snap) r = dur;
+        const idx_t f = first[p], n = first[p + 1] - first[p];
+        double A[4], B[4];
+        star_at(r, n, t0 + f, s0 + f, v0 + f, u + f, S1 + f, t_star, span, S1_end, A);
+        star_at(r - w, n, t0 + f, s0 + f, v0 + f, u + f, S1 + f, t_star, span, S1_end, B);
+        double s = clampd((A[0] - B[0]) / w, 0.0, span);
+        double sd = nmax((A[1] - B[1]) / w, 0.0);
+        double sdd = (A[2] - B[2]) / w;
+        double sddd = (A[3] - B[3]) / w;
+        if (r <= 0.0 || r >= dur) { s = 0.0; sd = sdd = sddd = 0.0; }
+        s_out[i] = s_start + (r >= dur ? span : s);
+        sd_out[i] = sd;
+        sdd_out[i] = sdd;
+        if (sddd_out) sddd_out[i] = sddd;
+    }
+}
+
+/* Per sample (s, sd, sdd[, sddd]) the largest ratios over the joints of |q' sd| / vmax,
+ * |q' sdd + q'' sd^2| / amax and (when coef3 is not NULL) |q' sddd + 3 q'' sd sdd + q''' sd^3| / jmax,
+ * with q', q'' cubic Hermite on the steps of nodes (n + 1,): coef (8, dof, n) as
+ * sampling.PathSamples.coef, coef3 (3, dof, n) as its coef3. */
+void gp_hermite_ratios(idx_t m, const double *s, const double *sd, const double *sdd, const double *sddd,
+                       idx_t n, const double *nodes, idx_t dof, const double *coef, const double *coef3,
+                       const double *vmax, const double *amax, const double *jmax,
+                       double *rv_out, double *ra_out, double *rj_out)
+{
+    const idx_t plane = dof * n;
+    for (idx_t i = 0; i < m; ++i) {
+        const idx_t k = clampi(upper(nodes, n + 1, s[i]) - 1, 0, n - 1);
+        const double r = s[i] - nodes[k], v = sd[i], acc = sdd[i], v2 = v * v;
+        double rv = -INFINITY, ra = -INFINITY, rj = -INFINITY;
+        for (idx_t j = 0; j < dof; ++j) {
+            const double *c = coef + j * n + k;
+            double a = c[3 * plane];
+            a *= r; a += c[2 * plane]; a *= r; a += c[plane]; a *= r; a += c[0];
+            double b = c[7 * plane];
+            b *= r; b += c[6 * plane]; b *= r; b += c[5 * plane]; b *= r; b += c[4 * plane];
+            double x = fabs(a * v) / vmax[j];
+            if (x > rv || isnan(x)) rv = x;
+            x = fabs(a * acc + b * v2) / amax[j];
+            if (x > ra || isnan(x)) ra = x;
+            if (coef3) {
+                const double *c3 = coef3 + j * n + k;
+                double q3 = c3[2 * plane];
+                q3 *= r; q3 += c3[plane]; q3 *= r; q3 += c3[0];
+                x = fabs(a * sddd[i] + 3.0 * b * (v * acc) + q3 * (v2 * v)) / jmax[j];
+                if (x > rj || isnan(x)) rj = x;
+            }
+        }
+        rv_out[i] = rv;
+        ra_out[i] = ra;
+        if (coef3) rj_out[i] = rj;
+    }
+}
+
+/* hi (n + 1,): hi_n = 0, hi_k = min(static_k, min_j A_kj hi_{k+1} + B_kj); A, B (n, R). */
+void gp_backward_pass(idx_t n, idx_t R, const double *A, const double *B, const double *st, double *hi)
+{
+    double h = 0.0;
+    hi[n] = 0.0;
+    for (idx_t k = n - 1; k >= 0; --k) {
+        double best = st[k];
+        const double *a = A + k * R, *b = B + k * R;
+        for (idx_t j = 0; j < R; ++j) {
+            double v = a[j] * h + b[j];
+            if (v < best) best = v;
+        }
+        h = best;
+        hi[k] = h;
+    }
+}
+
+/* x (n + 1,): x_0 = 0, u_k = min((hi_{k+1} - x_k) / (2 h_k), min_j alpha_kj x_k + d_kj),
+ * x_{k+1} = min(max(x_k + 2 h_k u_k, 0), hi_{k+1}); alpha, d (n, R), two_h (n,), hi (n + 1,). */
+void gp_forward_pass(idx_t n, idx_t R, const double *alpha, const double *d, const double *two_h,
+                     const double *hi, double *x)
+{
+    double xk = 0.0;
+    x[0] = 0.0;
+    for (idx_t k = 0; k < n; ++k) {
+        double u = (hi[k + 1] - xk) / two_h[k];
+        const double *al = alpha + k * R, *dk = d + k * R;
+        for (idx_t j = 0; j < R; ++j) {
+            double v = al[j] * xk + dk[j];
+            if (v < u) u = v;
+        }
+        xk = nmin(nmax(xk + two_h[k] * u, 0.0), hi[k + 1]);
+        x[k + 1] = xk;
+    }
+}
+
+static struct PyModuleDef kernels_module = {PyModuleDef_HEAD_INIT, "_kernels",
+                                            "Compiled kernels of the time laws (see kernels.py).", -1, NULL};
+
+PyMODINIT_FUNC PyInit__kernels(void) { return PyModule_Create(&kernels_module); }

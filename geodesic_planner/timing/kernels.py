@@ -1,0 +1,196 @@
+"""Compiled kernels of the time laws' hot loops, with the numpy code as the fallback.
+
+``_kernels.c`` (built by setup.py with the package, optional) does sample by sample what the numpy
+code of :mod:`.smoothing`, :mod:`.box_filter`, :mod:`.sampling` and :mod:`.topp` does on whole
+arrays: evaluating a law, interpolating the path's derivatives and taking the ratios to the limits,
+and the two TOPP passes. The callers ask :func:`active` and otherwise run their numpy code, which
+stays the reference (``test/timing/test_kernels.py`` compares the two, and runs the laws with each).
+
+The kernels are off when the extension was not built (no C compiler at set-up), when the
+environment sets ``GP_KERNELS=numpy``, or inside :func:`numpy_only`; :data:`REASON` says why.
+"""
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_tables', 'evaluate', 'forward_pass',
+           'hermite_ratios', 'limit_tables', 'numpy_only', 'path_tables', 'piecewise_tables', 'ratios']
+
+_P = ctypes.c_void_p
+_I = ctypes.c_int64
+_D = ctypes.c_double
+
+
+def _load() -> tuple[ctypes.CDLL | None, str]:
+    if os.environ.get('GP_KERNELS', '').strip().lower() == 'numpy':
+        return None, 'off: GP_KERNELS=numpy'
+    try:
+        from . import _kernels  # type: ignore[attr-defined]
+        lib = ctypes.CDLL(_kernels.__file__)
+    except (ImportError, OSError) as err:
+        return None, f'off: the compiled kernels are not built ({err}); the numpy code runs'
+    sigs = {
+        'gp_piecewise_evaluate': [_I, _P, _I, _P, _P, _D, _I, _P, _P, _P, _P, _P, _P],
+        'gp_box_evaluate': [_I, _P, _I, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P],
+        'gp_hermite_ratios': [_I, _P, _P, _P, _P, _I, _P, _I, _P, _P, _P, _P, _P, _P, _P, _P],
+        'gp_backward_pass': [_I, _I, _P, _P, _P, _P],
+        'gp_forward_pass': [_I, _I, _P, _P, _P, _P, _P],
+    }
+    for name, args in sigs.items():
+        fn = getattr(lib, name)
+        fn.argtypes = args
+        fn.restype = None
+    return lib, 'on'
+
+
+_LIB, REASON = _load()
+_ON = [_LIB is not None]     # switched by numpy_only
+
+
+def active() -> bool:
+    """True when the compiled kernels are loaded and not switched off."""
+    return _ON[0]
+
+
+@contextlib.contextmanager
+def numpy_only() -> Iterator[None]:
+    """Within this block the laws run their numpy code (for tests and benchmarks; the switch is
+    process-wide, not per thread)."""
+    before = _ON[0]
+    _ON[0] = False
+    try:
+        yield
+    finally:
+        _ON[0] = before
+def _f64(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+class Pinned:
+    """Arrays in the layout the kernels read (C-contiguous float64; int64 for integers), kept
+    alive, with their addresses: made once per law, path sampling or set of limits (taking an
+    array's address costs about 2 us in numpy, more than a kernel call on a few hundred samples)."""
+
+    __slots__ = ('arrays', 'ptrs')
+
+    def __init__(self, *arrays: np.ndarray | None) -> None:
+        self.arrays = tuple(None if a is None else np.ascontiguousarray(
+            a, dtype=np.int64 if np.asarray(a).dtype.kind in 'iub' else np.float64) for a in arrays)
+        self.ptrs = tuple(None if a is None else a.ctypes.data for a in self.arrays)
+
+
+@dataclass(frozen=True, eq=False)
+class LawTables:
+    """A law's tables for its kernel: the C function and its arguments after (m, t)."""
+
+    fn: Any
+    const: tuple[Any, ...]
+    keep: Pinned
+
+
+def piecewise_tables(t_offsets: np.ndarray, pieces: np.ndarray, key_step: float, seg_key: np.ndarray,
+                     seg: np.ndarray) -> LawTables:
+    """Tables of :class:`.smoothing.PiecewiseLaw` (its attributes of the same names)."""
+    assert _LIB is not None
+    p = Pinned(t_offsets, pieces, seg_key, seg)
+    o, pc, k, sg = p.ptrs
+    return LawTables(_LIB.gp_piecewise_evaluate, (pieces.shape[1], o, pc, float(key_step), seg_key.size, k, sg), p)
+
+
+def box_tables(t_offsets: np.ndarray, width: np.ndarray, ends: np.ndarray, first: np.ndarray,
+               steps: tuple[np.ndarray, ...]) -> LawTables:
+    """Tables of :class:`.box_filter.BoxLaw`: ends (4, L) (T*, span, S1 at the end, s_start),
+    each piece's first step (L + 1,), and the steps' t0, s0, v0, u, S1 (all pieces, in order)."""
+    assert _LIB is not None
+    p = Pinned(t_offsets, width, ends, first, *steps)
+    return LawTables(_LIB.gp_box_evaluate, (width.size, *p.ptrs), p)
+
+
+def path_tables(nodes: np.ndarray, coef: np.ndarray, coef3: np.ndarray | None = None) -> Pinned:
+    """Cubic-Hermite tables of :class:`.sampling.PathSamples`: its ``s``, ``coef`` and ``coef3``
+    (for the jerk ratios only)."""
+    return Pinned(nodes, coef, coef3)
+
+
+def limit_tables(vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray | None = None) -> Pinned:
+    """Per-joint limits (dof,) for :func:`ratios` and :func:`hermite_ratios`."""
+    return Pinned(vmax, amax, jmax)
+
+
+def evaluate(law: LawTables, t: np.ndarray, jerk: bool
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """The law at times t (M,): s, sdot, sddot and (if ``jerk``) sdddot, as its numpy ``evaluate``."""
+    t = _f64(t)
+    m = t.size
+    out = np.empty((4 if jerk else 3, m))
+    base, row = out.ctypes.data, 8 * m
+    law.fn(m, t.ctypes.data, *law.const, base, base + row, base + 2 * row, base + 3 * row if jerk else None)
+    return out[0], out[1], out[2], (out[3] if jerk else None)
+
+
+def _hermite(path: Pinned, limits: Pinned, m: int, rows: list[int | None], jerk: bool) -> None:
+    """gp_hermite_ratios on m samples: rows = addresses of s, sd, sdd, sddd (in), rv, ra, rj (out)."""
+    assert _LIB is not None
+    nodes, coef, coef3 = path.ptrs
+    c = path.arrays[1]
+    assert c is not None and (coef3 is not None or not jerk)
+    vmax, amax, jmax = limits.ptrs
+    assert jmax is not None or not jerk
+    _LIB.gp_hermite_ratios(m, rows[0], rows[1], rows[2], rows[3] if jerk else None, c.shape[2], nodes,
+                           c.shape[1], coef, coef3 if jerk else None, vmax, amax, jmax if jerk else None,
+                           rows[4], rows[5], rows[6] if jerk else None)
+
+
+def ratios(law: LawTables, path: Pinned, limits: Pinned, t: np.ndarray, jerk: bool) -> tuple[np.ndarray, ...]:
+    """The law at times t (M,) and its ratios to the limits there, the path's derivatives cubic
+    Hermite from ``path``: s, sd, sdd, rv, ra, or with ``jerk`` s, sd, sdd, sddd, rv, ra, rj, each
+    (M,); rv, ra, rj: the largest |velocity|, |acceleration|, |jerk| over its limit of the joints."""
+    t = _f64(t)
+    m = t.size
+    out = np.empty((7, m))
+    base, row = out.ctypes.data, 8 * m
+    p: list[int | None] = [base + i * row for i in range(7)]
+    law.fn(m, t.ctypes.data, *law.const, p[0], p[1], p[2], p[3] if jerk else None)
+    _hermite(path, limits, m, p, jerk)
+    return tuple(out) if jerk else (out[0], out[1], out[2], out[4], out[5])
+
+
+def hermite_ratios(path: Pinned, limits: Pinned, s: np.ndarray, sd: np.ndarray, sdd: np.ndarray,
+                   sddd: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Per sample (s, sd, sdd[, sddd]) (M,), the ratios of :func:`ratios` (rj with ``sddd``)."""
+    jerk = sddd is not None
+    ins = [_f64(v) for v in ((s, sd, sdd, sddd) if sddd is not None else (s, sd, sdd))]
+    m = ins[0].size
+    out = np.empty((3, m))
+    base, row = out.ctypes.data, 8 * m
+    rows: list[int | None] = [v.ctypes.data for v in ins] + [None] * (4 - len(ins))
+    _hermite(path, limits, m, rows + [base, base + row, base + 2 * row], jerk)
+    return out[0], out[1], (out[2] if jerk else None)
+
+
+def backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> np.ndarray:
+    """:func:`.topp._backward_pass` by its exact recursion: hi (n + 1,)."""
+    assert _LIB is not None
+    A, B, static = _f64(A), _f64(B), _f64(static)
+    n, R = A.shape
+    hi = np.empty(n + 1)
+    _LIB.gp_backward_pass(n, R, A.ctypes.data, B.ctypes.data, static.ctypes.data, hi.ctypes.data)
+    return hi
+
+
+def forward_pass(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """:func:`.topp._forward_pass` by its exact recursion: x (n + 1,)."""
+    assert _LIB is not None
+    alpha, d, two_h, hi = _f64(alpha), _f64(d), _f64(two_h), _f64(hi)
+    n, R = alpha.shape
+    x = np.empty(n + 1)
+    _LIB.gp_forward_pass(n, R, alpha.ctypes.data, d.ctypes.data, two_h.ctypes.data, hi.ctypes.data,
+                         x.ctypes.data)
+    return x

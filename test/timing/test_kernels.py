@@ -1,0 +1,157 @@
+"""The compiled kernels (geodesic_planner.timing.kernels) against the numpy code they replace.
+
+Each kernel is compared with the numpy fallback on the same inputs, or with a plain loop written
+here (the TOPP recursions); the time laws are then run both ways on synthetic and real paths,
+plain and blended, with and without jerk and tool limits: same durations, same motion.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from geodesic_planner.timing import kernels, time_parameterize
+from geodesic_planner.timing.sampling import sample_path
+
+from timing_paths import CornerPath, ZigZagPath, _ur5e_line_path, curved
+
+
+def test_kernels_are_built_and_on():
+    # The set-up builds the extension with the package: a silent fallback would hide a broken build.
+    assert kernels.REASON == 'on' and kernels.active()
+    with kernels.numpy_only():
+        assert not kernels.active()
+    assert kernels.active()
+
+
+def test_environment_switches_them_off():
+    code = 'from geodesic_planner.timing import kernels; print(kernels.active(), kernels.REASON)'
+    out = subprocess.run([sys.executable, '-c', code], env={**os.environ, 'GP_KERNELS': 'numpy'},
+                         capture_output=True, text=True, check=True).stdout
+    assert out.strip() == 'False off: GP_KERNELS=numpy'
+
+
+def _times(law, rng):
+    """Sorted times over [-0.1, duration + 0.1], the rests exactly and within round-off of them."""
+    T = law.duration
+    offs = np.asarray(law.t_offsets, dtype=float)
+    t = np.concatenate([np.linspace(-0.1, T + 0.1, 3001), offs, offs + 1e-13 * T, offs - 1e-13 * T,
+                        rng.uniform(0.0, T, 500)])
+    return np.sort(t)
+
+
+def _law_cases():
+    zig = ZigZagPath([0.0, 0.3, 0.55, 1.0])
+    return [('curved', curved(), 3.0), ('zigzag', zig, 5.0), ('corner', CornerPath([1.0, 0.5], [0.2, -1.0]), 4.0)]
+
+
+@pytest.mark.parametrize('name,path,jerk', _law_cases(), ids=lambda v: v if isinstance(v, str) else '')
+def test_law_evaluation_matches_numpy(name, path, jerk):
+    rng = np.random.default_rng(7)
+    for kw in ({}, {'max_jerk': jerk}):
+        law = time_parameterize(path, **kw).scaling
+        t = _times(law, rng)
+        for order in (t, rng.permutation(t)):       # sorted and unsorted times
+            for jerk_too in (True, False):
+                got = law.evaluate(order, jerk=jerk_too)
+                with kernels.numpy_only():
+                    want = law.evaluate(order, jerk=jerk_too)
+                assert (got[3] is None) == (want[3] is None) == (not jerk_too)
+                for g, w in zip(got, want):
+                    if w is not None:
+                        np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-12 * max(1.0, np.abs(w).max()))
+
+
+def test_hermite_ratios_match_the_interpolation():
+    path = curved()
+    ps = sample_path(path, 40)
+    rng = np.random.default_rng(3)
+    s = np.concatenate([ps.s, rng.uniform(0.0, 1.0, 700), [0.0, 1.0]])
+    sd, sdd, sddd = rng.uniform(0.0, 2.0, s.size), rng.normal(0.0, 3.0, s.size), rng.normal(0.0, 9.0, s.size)
+    vmax, amax, jmax = np.array([1.0, 1.5, 0.8]), np.array([3.0, 2.0, 4.0]), np.array([10.0, 20.0, 30.0])
+    a, b = ps.interpolate_t(s)
+    c = ps.third_derivative_t(np.sort(s))[:, np.argsort(np.argsort(s))]
+    want_v = (np.abs(a * sd) / vmax[:, None]).max(axis=0)
+    want_a = (np.abs(a * sdd + b * sd**2) / amax[:, None]).max(axis=0)
+    want_j = (np.abs(a * sddd + 3.0 * b * sd * sdd + c * sd**3) / jmax[:, None]).max(axis=0)
+    lim = kernels.limit_tables(vmax, amax, jmax)
+    rv, ra, rj = kernels.hermite_ratios(ps.kernel_tables3, lim, s, sd, sdd, sddd)
+    for got, want in ((rv, want_v), (ra, want_a), (rj, want_j)):
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)
+    rv2, ra2, none = kernels.hermite_ratios(ps.kernel_tables, lim, s, sd, sdd)
+    assert none is None
+    np.testing.assert_array_equal(rv2, rv)
+    np.testing.assert_array_equal(ra2, ra)
+    # NaN propagates, as numpy's max does (a bad sample is never taken for a small ratio)
+    sd[5] = np.nan
+    rv3, ra3, _ = kernels.hermite_ratios(ps.kernel_tables, lim, s, sd, sdd)
+    assert np.isnan(rv3[5]) and np.isnan(ra3[5]) and np.isfinite(rv3[6])
+
+
+def _backward_loop(A, B, static):
+    hi = np.zeros(static.size + 1)
+    for k in range(static.size - 1, -1, -1):
+        hi[k] = min([static[k]] + [a * hi[k + 1] + b for a, b in zip(A[k], B[k])])
+    return hi
+
+
+def _forward_loop(alpha, d, two_h, hi):
+    x = np.zeros(two_h.size + 1)
+    for k in range(two_h.size):
+        u = min([(hi[k + 1] - x[k]) / two_h[k]] + [a * x[k] + b for a, b in zip(alpha[k], d[k])])
+        x[k + 1] = min(max(x[k] + two_h[k] * u, 0.0), hi[k + 1])
+    return x
+
+
+def test_topp_passes_are_the_exact_recursions():
+    rng = np.random.default_rng(11)
+    n, R = 300, 12
+    A = rng.uniform(0.5, 1.5, (n, R))
+    B = rng.uniform(0.0, 2.0, (n, R))
+    B[rng.random((n, R)) < 0.05] = np.inf                 # rows that do not bind
+    static = rng.uniform(0.5, 5.0, n)
+    static[[40, 41, 200]] = 0.0                           # rests
+    hi = kernels.backward_pass(A, B, static)
+    np.testing.assert_array_equal(hi, _backward_loop(A, B, static))
+    alpha, d = rng.normal(0.0, 1.0, (n, R)), rng.uniform(0.1, 3.0, (n, R))
+    two_h = np.full(n, 2.0 / n)
+    x = kernels.forward_pass(alpha, d, two_h, hi)
+    np.testing.assert_array_equal(x, _forward_loop(alpha, d, two_h, hi))
+    assert x[0] == 0.0 and np.all(x <= hi) and np.all(x >= 0.0)
+
+
+def _same_law(path, **kw):
+    got = time_parameterize(path, **kw)
+    with kernels.numpy_only():
+        want = time_parameterize(path, **kw)
+    assert got.duration == pytest.approx(want.duration, rel=1e-9)
+    assert got.rest_times == pytest.approx(want.rest_times, rel=1e-9, abs=1e-12)
+    t = np.linspace(0.0, got.duration, 401)
+    for g, w in zip(got.at_time(t), want.at_time(t * (want.duration / got.duration))):
+        np.testing.assert_allclose(g, w, rtol=1e-7, atol=1e-7 * max(1.0, np.abs(w).max()))
+    return got
+
+
+@pytest.mark.parametrize('name,path,jerk', _law_cases(), ids=lambda v: v if isinstance(v, str) else '')
+def test_laws_are_the_same_with_numpy(name, path, jerk):
+    _same_law(path)
+    _same_law(path, max_jerk=jerk)
+    _same_law(path, duration=1.3 * _same_law(path).duration)
+
+
+def test_real_arm_laws_are_the_same_with_numpy():
+    robot, planner, q_a, T_a, T_b = _ur5e_line_path()
+    path = planner.plan(T_a, T_b, start_joints=q_a)
+    free = _same_law(path)
+    _same_law(path, max_tool_speed=0.1)                        # tool rows in the check
+    peak = np.abs(free.jerk_at_time(np.linspace(0.0, free.duration, 4001))).max(axis=0)
+    _same_law(path, max_jerk=0.3 * peak)
+    # a blended sequence (many pieces of s*, local slow-down passes, the cruise cap)
+    poses = [T_a, T_b, T_a.copy()]
+    poses[2][:3, 3] += [0.05, 0.1, -0.05]
+    seq = planner.plan_through(poses, start_joints=q_a, blend_radius=0.02)
+    _same_law(seq)
+    _same_law(seq, max_jerk=50.0)
