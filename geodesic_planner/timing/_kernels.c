@@ -10,6 +10,7 @@
  *                          per-sample ratios to the velocity, acceleration (and jerk) limits
  *   gp_backward_pass       topp: hi_k = min(static_k, min_j A_kj hi_{k+1} + B_kj), hi_n = 0
  *   gp_forward_pass        topp: the greedy forward pass
+ *   gp_topp_rows           topp: the passes' constraint rows and static bounds
  *
  * The module init below only makes the file importable as an extension module (so that setuptools
  * builds it with the package); it defines no Python functions.
@@ -236,7 +237,84 @@ void gp_forward_pass(idx_t n, idx_t R, const double *alpha, const double *d, con
     }
 }
 
-static struct PyModuleDef kernels_module = {PyModuleDef_HEAD_INIT, "_kernels",
-                                            "Compiled kernels of the time laws (see kernels.py).", -1, NULL};
+/* The constraint rows of topp.topp on the nodes s (n + 1,) with one-sided q', q'' (aL, aR, bL, bR,
+ * each (n + 1, dof)), limits vmax, amax (dof,), x_max (n + 1,) or NULL, stop (n + 1,) (nonzero: a
+ * corner). Per step k, the R = 2 dof acceleration rows |ra u + rb x_k| <= rl become
+ * alpha x + c <= u <= alpha x + d; outputs alpha, d, A, B (n, R), the static bound on x_k (n,)
+ * and 2 h_k (n,), with the same formulas, masks and order of operations as topp.topp. */
+void gp_topp_rows(idx_t n, idx_t dof, const double *s, const double *aL, const double *aR, const double *bL,
+                  const double *bR, const double *vmax, const double *amax, const double *x_max,
+                  const int64_t *stop, double *alpha, double *d, double *A, double *B, double *st, double *two_h)
+{
+    const idx_t R = 2 * dof;
+    double top_v = 0.0, top_a = 0.0;
+    for (idx_t i = 0; i < (n + 1) * dof; ++i) {
+        double v = nmax(fabs(aL[i]), fabs(aR[i]));
+        if (v > top_v || isnan(v)) top_v = v;
+    }
+    for (idx_t k = 0; k < n; ++k) {
+        const double dl = s[k + 1] - s[k];
+        for (idx_t j = 0; j < dof; ++j) {
+            double a0 = fabs(aR[k * dof + j]);
+            double a1 = fabs(aL[(k + 1) * dof + j] + 2.0 * dl * bL[(k + 1) * dof + j]);
+            if (a0 > top_a || isnan(a0)) top_a = a0;
+            if (a1 > top_a || isnan(a1)) top_a = a1;
+        }
+    }
+    const double eps_v = 1e-12 * fmax(top_v, 1e-300), eps_a = 1e-12 * fmax(top_a, 1e-300);
+    for (idx_t k = 0; k < n; ++k) {
+        /* velocity bound at node k: min over joints of (vmax / |q'|)^2, capped by x_max */
+        double xv = INFINITY;
+        for (idx_t j = 0; j < dof; ++j) {
+            double a = nmax(fabs(aL[k * dof + j]), fabs(aR[k * dof + j]));
+            if (a > eps_v) {
+                double r = vmax[j] / a;
+                r = r * r;
+                if (r < xv) xv = r;
+            }
+        }
+        if (x_max) xv = nmin(xv, x_max[k]);
+        const double dl = s[k + 1] - s[k];
+        two_h[k] = 2.0 * dl;
+        double *al = alpha + k * R, *dk = d + k * R, *Ak = A + k * R, *Bk = B + k * R;
+        double xz = INFINITY, xl = INFINITY, xp = INFINITY;
+        for (idx_t j = 0; j < R; ++j) {
+            const idx_t jj = j % dof;
+            double ra, rb;
+            if (j < dof) { ra = aR[k * dof + jj]; rb = bR[k * dof + jj]; }
+            else { ra = aL[(k + 1) * dof + jj] + 2.0 * dl * bL[(k + 1) * dof + jj]; rb = bL[(k + 1) * dof + jj]; }
+            const double rl = amax[jj], absa = fabs(ra);
+            const int moving = absa > eps_a;
+            double c;
+            if (moving) {
+                al[j] = -rb / ra;
+                dk[j] = rl / absa;
+                c = -rl / absa;
+            } else {
+                double absb = fabs(rb);
+                if (absb > 0) { double z = rl / absb; if (z < xz) xz = z; }
+                al[j] = 0.0;
+                dk[j] = INFINITY;
+                c = -INFINITY;
+            }
+            const double coef = -1.0 / (2.0 * dl) - al[j];
+            if (moving && coef > 0) { double z = dk[j] / coef; if (z < xl) xl = z; }
+            const double den = 1.0 + 2.0 * dl * al[j];
+            if (moving && den > 0) { Ak[j] = 1.0 / den; Bk[j] = -2.0 * dl * c / den; }
+            else { Ak[j] = 0.0; Bk[j] = INFINITY; }
+        }
+        for (idx_t i = 0; i < R; ++i)
+            for (idx_t j = i + 1; j < R; ++j) {
+                double z = (dk[i] + dk[j]) / fabs(al[i] - al[j]);
+                if (z < xp || isnan(z)) xp = nmin(xp, z);
+            }
+        double v = nmin(nmin(nmin(xv, xz), nmin(xp, xl)), 1e12);
+        st[k] = stop[k] ? 0.0 : nmax(v, 0.0);
+    }
+}
+
+static struct PyModuleDef kernels_module = {
+    PyModuleDef_HEAD_INIT, .m_name = "_kernels",
+    .m_doc = "Compiled kernels of the time laws (see kernels.py).", .m_size = -1};
 
 PyMODINIT_FUNC PyInit__kernels(void) { return PyModule_Create(&kernels_module); }

@@ -42,6 +42,7 @@ def _load() -> tuple[ctypes.CDLL | None, str]:
         'gp_hermite_ratios': [_I, _P, _P, _P, _P, _I, _P, _I, _P, _P, _P, _P, _P, _P, _P, _P],
         'gp_backward_pass': [_I, _I, _P, _P, _P, _P],
         'gp_forward_pass': [_I, _I, _P, _P, _P, _P, _P],
+        'gp_topp_rows': [_I, _I] + [_P] * 15,
     }
     for name, args in sigs.items():
         fn = getattr(lib, name)
@@ -173,6 +174,29 @@ def hermite_ratios(path: Pinned, limits: Pinned, s: np.ndarray, sd: np.ndarray, 
     rows: list[int | None] = [v.ctypes.data for v in ins] + [None] * (4 - len(ins))
     _hermite(path, limits, m, rows + [base, base + row, base + 2 * row], jerk)
     return out[0], out[1], (out[2] if jerk else None)
+
+
+def topp(rows: Pinned, vmax: np.ndarray, amax: np.ndarray, x_max: np.ndarray | None) -> np.ndarray:
+    """The time-optimal x = sdot^2 (n + 1,) of :func:`.topp.topp` before its last node is zeroed:
+    the constraint rows, then the backward and forward passes, all compiled. ``rows``: the
+    samples' ``kernel_rows`` (nodes, aL, aR, bL, bR, stop)."""
+    assert _LIB is not None
+    s, aL = rows.arrays[0], rows.arrays[1]
+    assert s is not None and aL is not None
+    n, dof = s.size - 1, aL.shape[1]
+    R = 2 * dof
+    lim = Pinned(vmax, amax, x_max)
+    block = np.empty(4 * n * R + 2 * n + 2 * (n + 1))
+    base = block.ctypes.data
+    alpha, d, A, B = (base + 8 * i * n * R for i in range(4))
+    static = base + 8 * 4 * n * R
+    two_h = static + 8 * n
+    hi = two_h + 8 * n
+    x = hi + 8 * (n + 1)
+    _LIB.gp_topp_rows(n, dof, *rows.ptrs[:5], *lim.ptrs, rows.ptrs[5], alpha, d, A, B, static, two_h)
+    _LIB.gp_backward_pass(n, R, A, B, static, hi)
+    _LIB.gp_forward_pass(n, R, alpha, d, two_h, hi, x)
+    return block[4 * n * R + 2 * n + n + 1:]
 
 
 def backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> np.ndarray:

@@ -106,6 +106,11 @@ class PathSamples:
         return kernels.path_tables(self.s, self.coef)
 
     @functools.cached_property
+    def kernel_rows(self) -> kernels.Pinned:
+        """The nodes, one-sided q' and q'' and corners for the compiled :func:`.kernels.topp`."""
+        return kernels.Pinned(self.s, self.aL, self.aR, self.bL, self.bR, self.stop)
+
+    @functools.cached_property
     def kernel_tables3(self) -> kernels.Pinned:
         """:attr:`kernel_tables` with the third derivative (for the jerk ratios)."""
         return kernels.path_tables(self.s, self.coef, self.coef3)

@@ -12,7 +12,9 @@ Both passes are min-of-affine recursions. Each is solved first in closed form, w
 recursion over all rows to 1e-12; otherwise a plain loop over all rows gives the exact recursion.
 On 200 random polynomial paths the closed form was refused in about 1 of 7 forward passes (and
 on a few backward passes), so the loop is needed; guessing rows to shorten the loop would save
-only about 4 % of those cases, so there is no third way.
+only about 4 % of those cases, so there is no third way. With the compiled kernels
+(:mod:`.kernels`) the rows and both passes run in C, always by the exact recursion (microseconds);
+this numpy code is their fallback and reference.
 """
 from __future__ import annotations
 
@@ -201,6 +203,19 @@ def topp(ps: PathSamples, vmax: np.ndarray, amax: np.ndarray, x_max: np.ndarray 
     """
     checkpoint()
     n = ps.s.size - 1
+    # the same rows and passes compiled (kernels.topp), or in numpy
+    out = kernels.topp(ps.kernel_rows, vmax, amax, x_max) if kernels.active() else _numpy_profile(
+        ps, vmax, amax, x_max)
+    out[n] = 0.0
+    stuck = (out[:-1] <= 0.0) & (out[1:] <= 0.0)
+    if np.any(stuck):
+        k = int(np.argmax(stuck))
+        raise LimitError(f'path cannot be traversed under the limits: speed forced to zero at s = {ps.s[k]:.6g}')
+    return out
+
+
+def _numpy_profile(ps: PathSamples, vmax: np.ndarray, amax: np.ndarray, x_max: np.ndarray | None) -> np.ndarray:
+    """The rows and both passes of :func:`topp` in numpy: x (n + 1,) before its last node is zeroed."""
     dl = np.diff(ps.s)[:, None]                                   # (n, 1) step lengths
     with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
         absa_n = np.maximum(np.abs(ps.aL), np.abs(ps.aR))
@@ -252,14 +267,7 @@ def topp(ps: PathSamples, vmax: np.ndarray, amax: np.ndarray, x_max: np.ndarray 
     # Backward pass: largest x_k from which the end (and every corner) is reached at rest.
     hi = _backward_pass(A, B, static)
     # Forward pass: greedy largest sddot.
-    x = _forward_pass(alpha, d, 2.0 * dl[:, 0], hi)
-    out = x
-    out[n] = 0.0
-    stuck = (out[:-1] <= 0.0) & (out[1:] <= 0.0)
-    if np.any(stuck):
-        k = int(np.argmax(stuck))
-        raise LimitError(f'path cannot be traversed under the limits: speed forced to zero at s = {ps.s[k]:.6g}')
-    return out
+    return _forward_pass(alpha, d, 2.0 * dl[:, 0], hi)
 
 
 __all__ = ['topp']

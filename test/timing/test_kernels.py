@@ -155,3 +155,25 @@ def test_real_arm_laws_are_the_same_with_numpy():
     seq = planner.plan_through(poses, start_joints=q_a, blend_radius=0.02)
     _same_law(seq)
     _same_law(seq, max_jerk=50.0)
+
+
+def _topp_cases():
+    from timing_paths import PolyPath
+    still = PolyPath([[0.1, 0.0, 0.2], [1.0, 0.0, -0.5], [0.5, 0.0, 1.0]], vmax=(1.0, 1.0, 0.7), amax=2.0)
+    return [('curved', curved(), None), ('curved, x cap', curved(), 0.8),
+            ('corner', CornerPath([1.0, 0.5], [0.2, -1.0]), None), ('zigzag', ZigZagPath([0.0, 0.3, 0.55, 1.0]), None),
+            ('a joint that never moves', still, None)]
+
+
+@pytest.mark.parametrize('name,path,cap', _topp_cases(), ids=lambda v: v if isinstance(v, str) else '')
+def test_topp_matches_numpy(name, path, cap):
+    from geodesic_planner.timing.topp import topp
+    ps = sample_path(path, 60).refined(2)
+    vmax, amax = path.robot.max_velocity, path.robot.max_acceleration
+    x_max = None if cap is None else np.full(ps.s.size, cap)
+    for scale in (1.0, 0.3):                       # as the jerk law's acceleration scales
+        got = topp(ps, vmax, scale * amax, x_max)
+        with kernels.numpy_only():
+            want = topp(ps, vmax, scale * amax, x_max)
+        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12 * want.max())
+        assert got[0] == got[-1] == 0.0
