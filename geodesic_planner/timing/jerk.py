@@ -100,8 +100,8 @@ class _Checker:
 
     def stretch(self, law: BoxLaw, exact: bool = False) -> float:
         """Smallest uniform time stretch (>= 1) keeping ``law`` within 1 - CHECK_MARGIN of every
-        limit; ``exact``: the samples nearest a limit with ``path.evaluate`` (else with
-        ``path.interpolate``, the solver's spline, as during the search)."""
+        limit; ``exact``: on the full grid, the samples nearest a limit re-checked with
+        ``path.evaluate`` (else on the search grid with the interpolated derivatives alone)."""
         rv, ra, rj = self.ratios(law, exact)
         target = 1.0 - CHECK_MARGIN
         return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target))
@@ -183,14 +183,15 @@ class _Checker:
         ps = self.ps
         t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need = self._dense(law, full=exact)
         rv, ra, rj = float(rv_t.max()), float(ra_t.max()), float(rj_t.max())
-        # The samples closest to a limit, with the exact path derivatives.
-        k = max(1, min(EXACT_CHECKS, need.size))
-        top = np.argpartition(need, -k)[-k:]
-        fn = self.path.evaluate if exact else getattr(self.path, 'interpolate', self.path.evaluate)
-        q_x, a_x, b_x, c_x = (np.asarray(v, dtype=float) for v in fn(s[top]))
-        rv, ra, rj = self._max_ratios((rv, ra, rj), a_x, b_x, c_x, sd[top], sdd[top], sddd[top])
-        if self.tool is not None:
-            rv = max(rv, float(np.max(self.tool.exact_ratios(q_x, a_x, sd[top]))))
+        # The samples closest to a limit, with the exact path derivatives (the law kept; the
+        # search compares widths on the interpolated derivatives alone).
+        if exact:
+            k = max(1, min(EXACT_CHECKS, need.size))
+            top = np.argpartition(need, -k)[-k:]
+            q_x, a_x, b_x, c_x = (np.asarray(v, dtype=float) for v in self.path.evaluate(s[top]))
+            rv, ra, rj = self._max_ratios((rv, ra, rj), a_x, b_x, c_x, sd[top], sdd[top], sddd[top])
+            if self.tool is not None:
+                rv = max(rv, float(np.max(self.tool.exact_ratios(q_x, a_x, sd[top]))))
         # Breakpoints where q'' or q''' jumps (not a rest): both one-sided values where crossed.
         inner = np.flatnonzero(((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1)
                                 | (ps.cL != ps.cR).any(axis=1)) & ~ps.stop)
@@ -321,7 +322,7 @@ class JerkLimited:
         law, lam = best
         if lam > LOCAL_TRIGGER:     # a local dip the filter cannot follow: slow down near it
             law, lam = _local_passes(fine, best_x, best_beta, best, checker, cap, jmax)
-        # The search checked with the solver's spline near the limits; the law kept, exactly.
+        # The search compared widths on interpolated derivatives; the law kept is checked exactly.
         lam = checker.stretch(law, exact=True)
         t_min = lam * law.duration
         T = final_duration(duration, t_min)
