@@ -32,6 +32,19 @@ static idx_t upper(const double *a, idx_t n, double x)
     return lo;
 }
 
+/* upper(a, n, x), first trying the answer of the previous call (*hint) and the next one: sorted
+ * times (the usual case) then cost O(1) per sample; *hint is updated. */
+static idx_t upper_hint(const double *a, idx_t n, double x, idx_t *hint)
+{
+    idx_t h = *hint;
+    if (h > n) h = n;
+    if ((h == 0 || a[h - 1] <= x) && (h == n || x < a[h])) return h;
+    if (h < n && a[h] <= x && (h + 1 == n || x < a[h + 1])) { *hint = h + 1; return h + 1; }
+    h = upper(a, n, x);
+    *hint = h;
+    return h;
+}
+
 /* Number of entries of a that are < x (numpy searchsorted(a, x, side='left')). */
 static idx_t lower(const double *a, idx_t n, double x)
 {
@@ -58,6 +71,7 @@ void gp_piecewise_evaluate(idx_t m, const double *t, idx_t L, const double *offs
 {
     const double duration = offs[L];
     const double snap = 1e-12 * fmax(1.0, duration);
+    idx_t hints[3] = {0, 0, 0};
     for (idx_t i = 0; i < m; ++i) {
         double ti = t[i], local, key_off = 0.0;
         idx_t p = 0;
@@ -81,7 +95,7 @@ void gp_piecewise_evaluate(idx_t m, const double *t, idx_t L, const double *offs
             if (k == 1) q = local - tau;
             else if (k == 2) q = q - tau;
             double key = L > 1 ? q + key_off : q;
-            idx_t g = upper(seg_key, S, key) - 1;
+            idx_t g = upper_hint(seg_key, S, key, &hints[k]) - 1;
             if (g < 0) g = 0;
             const double start = seg[g], s0 = seg[S + g], v0 = seg[2 * S + g], u = seg[3 * S + g];
             const double S1 = seg[4 * S + g], S2 = seg[5 * S + g];
@@ -116,9 +130,9 @@ void gp_piecewise_evaluate(idx_t m, const double *t, idx_t L, const double *offs
 /* s* of one piece at local time r: integral S1, s* - s_start, sdot*, sddot* (box_filter.StarPiece.at).
  * The piece's steps are t0, s0, v0, u, S1 (each n entries); t_star, span, S1_end its end. */
 static void star_at(double r, idx_t n, const double *t0, const double *s0, const double *v0, const double *u,
-                    const double *S1, double t_star, double span, double S1_end, double out[4])
+                    const double *S1, double t_star, double span, double S1_end, idx_t *hint, double out[4])
 {
-    idx_t k = clampi(upper(t0, n, r) - 1, 0, n - 1);
+    idx_t k = clampi(upper_hint(t0, n, r, hint) - 1, 0, n - 1);
     double d = r - t0[k];
     double a = s0[k], v = v0[k], uk = u[k];
     double I = S1[k] + d * (a + d * (0.5 * v + d * uk / 6.0));
@@ -139,6 +153,7 @@ void gp_box_evaluate(idx_t m, const double *t, idx_t L, const double *offs, cons
 {
     const double duration = offs[L];
     const double snap = 1e-12 * fmax(1.0, duration);
+    idx_t hints[2] = {0, 0}, last_piece = -1;
     for (idx_t i = 0; i < m; ++i) {
         double ti = clampd(t[i], 0.0, duration);
         idx_t p = clampi(upper(offs, L + 1, ti) - 1, 0, L - 1);
@@ -148,9 +163,10 @@ void gp_box_evaluate(idx_t m, const double *t, idx_t L, const double *offs, cons
         double r = clampd(ti - offs[p], 0.0, dur);
         if (fabs(r - dur) <= snap) r = dur;
         const idx_t f = first[p], n = first[p + 1] - first[p];
+        if (p != last_piece) { hints[0] = hints[1] = 0; last_piece = p; }
         double A[4], B[4];
-        star_at(r, n, t0 + f, s0 + f, v0 + f, u + f, S1 + f, t_star, span, S1_end, A);
-        star_at(r - w, n, t0 + f, s0 + f, v0 + f, u + f, S1 + f, t_star, span, S1_end, B);
+        star_at(r, n, t0 + f, s0 + f, v0 + f, u + f, S1 + f, t_star, span, S1_end, &hints[0], A);
+        star_at(r - w, n, t0 + f, s0 + f, v0 + f, u + f, S1 + f, t_star, span, S1_end, &hints[1], B);
         double s = clampd((A[0] - B[0]) / w, 0.0, span);
         double sd = nmax((A[1] - B[1]) / w, 0.0);
         double sdd = (A[2] - B[2]) / w;
@@ -173,8 +189,9 @@ void gp_hermite_ratios(idx_t m, const double *s, const double *sd, const double 
                        double *rv_out, double *ra_out, double *rj_out)
 {
     const idx_t plane = dof * n;
+    idx_t hint = 0;
     for (idx_t i = 0; i < m; ++i) {
-        const idx_t k = clampi(upper(nodes, n + 1, s[i]) - 1, 0, n - 1);
+        const idx_t k = clampi(upper_hint(nodes, n + 1, s[i], &hint) - 1, 0, n - 1);
         const double r = s[i] - nodes[k], v = sd[i], acc = sdd[i], v2 = v * v;
         double rv = -INFINITY, ra = -INFINITY, rj = -INFINITY;
         for (idx_t j = 0; j < dof; ++j) {

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import functools
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -82,6 +82,7 @@ class BoxLaw:
     s_start: np.ndarray
     width: np.ndarray
     t_offsets: np.ndarray
+    star_tables: kernels.Pinned | None = field(default=None, repr=False)   # of ``stars`` (star_tables)
 
     @property
     def n_pieces(self) -> int:
@@ -128,13 +129,10 @@ class BoxLaw:
 
     @functools.cached_property
     def tables(self) -> kernels.LawTables:
-        """All pieces' s* in flat tables, for the compiled :func:`.kernels.evaluate`."""
-        ends = np.array([[p.t_star for p in self.stars], [p.span for p in self.stars],
-                         [p.S1_end for p in self.stars], self.s_start.tolist()], dtype=float)
-        first = np.concatenate([[0], np.cumsum([p.t0.size for p in self.stars])]).astype(np.int64)
-        steps = (np.concatenate([getattr(p, name) for p in self.stars]).astype(float)
-                 for name in ('t0', 's0', 'v0', 'u', 'S1'))
-        return kernels.box_tables(self.t_offsets, self.width, ends, first, tuple(steps))
+        """The law's tables for the compiled :func:`.kernels.evaluate` (its pieces' s* from
+        ``star_tables`` when given)."""
+        stars = self.star_tables or star_tables(list(zip(self.s_start.tolist(), self.stars)))
+        return kernels.box_tables(self.t_offsets, self.width, stars)
 
     def times_at(self, s: np.ndarray) -> np.ndarray:
         """Approximate times (M,) at which the law passes ``s`` (M,): s*'s nodes delayed by w / 2."""
@@ -151,11 +149,25 @@ class BoxLaw:
         return distinct_times(np.concatenate(ev + [self.t_offsets]))
 
 
-def build_box_law(pieces: list[tuple[float, StarPiece]], width: np.ndarray) -> BoxLaw:
-    """The box-filtered law of ``pieces`` with window ``width`` (L,) per piece, s."""
+def star_tables(pieces: list[tuple[float, StarPiece]]) -> kernels.Pinned:
+    """The pieces' s* in flat tables for :func:`.kernels.box_tables`, the same for every window:
+    ends (4, L) (T*, span, S1 at the end, s_start), each piece's first step (L + 1,), and the
+    steps' t0, s0, v0, u, S1 (all pieces, in order)."""
+    stars = [p for _, p in pieces]
+    ends = np.array([[p.t_star for p in stars], [p.span for p in stars], [p.S1_end for p in stars],
+                     [s for s, _ in pieces]], dtype=float)
+    first = np.concatenate([[0], np.cumsum([p.t0.size for p in stars])]).astype(np.int64)
+    steps = (np.concatenate([getattr(p, name) for p in stars]).astype(float) for name in ('t0', 's0', 'v0', 'u', 'S1'))
+    return kernels.Pinned(ends, first, *steps)
+
+
+def build_box_law(pieces: list[tuple[float, StarPiece]], width: np.ndarray,
+                  tables: kernels.Pinned | None = None) -> BoxLaw:
+    """The box-filtered law of ``pieces`` with window ``width`` (L,) per piece, s; ``tables``:
+    their :func:`star_tables`, when several windows are tried on the same pieces."""
     durations = np.array([p.t_star for _, p in pieces]) + width
     return BoxLaw(tuple(p for _, p in pieces), np.array([s for s, _ in pieces]), width,
-                  np.concatenate([[0.0], np.cumsum(durations)]))
+                  np.concatenate([[0.0], np.cumsum(durations)]), tables)
 
 
-__all__ = ['BoxLaw', 'StarPiece', 'build_box_law', 'star_pieces']
+__all__ = ['BoxLaw', 'StarPiece', 'build_box_law', 'star_pieces', 'star_tables']

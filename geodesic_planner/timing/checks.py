@@ -5,9 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .tuning import LOCAL_MARGIN, LOCAL_POWER, PEAK_CHECKS, PEAK_SAMPLES
+from .tuning import LOCAL_MARGIN, LOCAL_POWER, PEAK_CHECKS, PEAK_SAMPLES, S_UNIFORM_CHECKS
 
-__all__ = ['distinct_times', 'local_cap', 'peak_samples', 'range_max']
+__all__ = ['UNIFORM_S', 'distinct_times', 'local_cap', 'peak_samples', 'range_max']
+
+#: Path parameters of the check samples spread uniformly in s (each law maps them to times).
+UNIFORM_S = np.linspace(0.0, 1.0, S_UNIFORM_CHECKS)
+UNIFORM_S.flags.writeable = False
 
 
 def local_cap(s_nodes: np.ndarray, x: np.ndarray, law: object, t: np.ndarray, need: np.ndarray,

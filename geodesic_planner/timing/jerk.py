@@ -44,11 +44,11 @@ from ._arrays import clip
 from .law import final_duration
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
-from .checks import distinct_times, local_cap, peak_samples
-from .tuning import CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS, TOPP_MARGIN
+from .checks import UNIFORM_S, distinct_times, local_cap, peak_samples
+from .tuning import CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, TOPP_MARGIN
 from .tool import ToolRows, tool_rows
 from .topp import topp
-from .box_filter import BoxLaw, StarPiece, build_box_law, star_pieces
+from .box_filter import BoxLaw, StarPiece, build_box_law, star_pieces, star_tables
 from .trajectory import Trajectory
 
 #: Uniform time samples of the check while the width is searched (plus those near the jerk
@@ -107,6 +107,13 @@ class _Checker:
         return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target))
 
     @functools.cached_property
+    def _inner(self) -> np.ndarray:
+        """Indices of the nodes where q'' or q''' jumps but the law does not rest."""
+        ps = self.ps
+        return np.flatnonzero(((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1)
+                               | (ps.cL != ps.cR).any(axis=1)) & ~ps.stop)
+
+    @functools.cached_property
     def _limits(self) -> kernels.Pinned:
         lim = self.limits
         jmax = lim.max_jerk if lim.max_jerk is not None else np.full(lim.max_velocity.size, np.inf)
@@ -144,7 +151,7 @@ class _Checker:
             stride = max(1, -(-e0.size // (2 * SEARCH_SAMPLES)))
             inside = ((e0 + 0.5 * g)[::stride],)
         t = np.concatenate([np.linspace(0.0, law.duration, m),
-                            law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS)), *inside])
+                            law.times_at(UNIFORM_S), *inside])
         t = distinct_times(t)
 
         def ratios(t: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -193,8 +200,7 @@ class _Checker:
             if self.tool is not None:
                 rv = max(rv, float(np.max(self.tool.exact_ratios(q_x, a_x, sd[top]))))
         # Breakpoints where q'' or q''' jumps (not a rest): both one-sided values where crossed.
-        inner = np.flatnonzero(((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1)
-                                | (ps.cL != ps.cR).any(axis=1)) & ~ps.stop)
+        inner = self._inner
         if inner.size:
             # the search compares widths: the crossing interpolated between its samples suffices
             crossing = _crossing_times(law, t, s, ps.s[inner], newton=6 if exact else 0)
@@ -378,10 +384,11 @@ def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checke
     """The width factor with the shortest checked duration, searched from ``WIDTH_SCAN[start]``:
     (law, its stretch)."""
     cache: dict[float, tuple[float, BoxLaw, float]] = {}
+    tables = star_tables(pieces) if kernels.active() else None    # the same s* for every width
 
     def total(log_c: float) -> float:
         if log_c not in cache:
-            law = build_box_law(pieces, math.exp(log_c) * w_ref)
+            law = build_box_law(pieces, math.exp(log_c) * w_ref, tables)
             lam = checker.stretch(law)
             cache[log_c] = (lam * law.duration, law, lam)
         return cache[log_c][0]

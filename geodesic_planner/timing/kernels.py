@@ -93,7 +93,7 @@ class LawTables:
 
     fn: Any
     const: tuple[Any, ...]
-    keep: Pinned
+    keep: Pinned | tuple[Pinned, ...]
 
 
 def piecewise_tables(t_offsets: np.ndarray, pieces: np.ndarray, key_step: float, seg_key: np.ndarray,
@@ -105,13 +105,12 @@ def piecewise_tables(t_offsets: np.ndarray, pieces: np.ndarray, key_step: float,
     return LawTables(_LIB.gp_piecewise_evaluate, (pieces.shape[1], o, pc, float(key_step), seg_key.size, k, sg), p)
 
 
-def box_tables(t_offsets: np.ndarray, width: np.ndarray, ends: np.ndarray, first: np.ndarray,
-               steps: tuple[np.ndarray, ...]) -> LawTables:
-    """Tables of :class:`.box_filter.BoxLaw`: ends (4, L) (T*, span, S1 at the end, s_start),
-    each piece's first step (L + 1,), and the steps' t0, s0, v0, u, S1 (all pieces, in order)."""
+def box_tables(t_offsets: np.ndarray, width: np.ndarray, stars: Pinned) -> LawTables:
+    """Tables of :class:`.box_filter.BoxLaw`: its offsets and windows, and its pieces' s*
+    (``stars``: :func:`.box_filter.star_tables`, shared by the laws of every window tried)."""
     assert _LIB is not None
-    p = Pinned(t_offsets, width, ends, first, *steps)
-    return LawTables(_LIB.gp_box_evaluate, (width.size, *p.ptrs), p)
+    p = Pinned(t_offsets, width)
+    return LawTables(_LIB.gp_box_evaluate, (width.size, *p.ptrs, *stars.ptrs), (p, stars))
 
 
 def path_tables(nodes: np.ndarray, coef: np.ndarray, coef3: np.ndarray | None = None) -> Pinned:

@@ -41,8 +41,8 @@ from .law import final_duration
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
 from .tool import ToolRows, tool_rows
-from .checks import distinct_times, local_cap, peak_samples
-from .tuning import (CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, S_UNIFORM_CHECKS, TOPP_MARGIN)
+from .checks import UNIFORM_S, distinct_times, local_cap, peak_samples
+from .tuning import (CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, TOPP_MARGIN)
 from .topp import topp
 from .trajectory import Trajectory
 
@@ -453,7 +453,7 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
         t_chk = np.union1d(t_chk, law.t_offsets)
     # Also samples about uniform in s: a long law can cross a stretch of the path in a fraction
     # of its duration, where samples uniform in t are sparse.
-    t_chk = distinct_times(np.concatenate([t_chk, law.times_at(np.linspace(0.0, 1.0, S_UNIFORM_CHECKS))]))
+    t_chk = distinct_times(np.concatenate([t_chk, law.times_at(UNIFORM_S)]))
     s, sd, sdd, rv_t, ra_t = _ratios(ps, law, t_chk, vmax, amax, tool)
     # Around the highest local peaks, samples at a quarter of the uniform spacing.
     need = np.maximum(rv_t, np.sqrt(ra_t))
