@@ -120,8 +120,10 @@ def path_tables(nodes: np.ndarray, coef: np.ndarray, coef3: np.ndarray | None = 
 
 
 def limit_tables(vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray | None = None) -> Pinned:
-    """Per-joint limits (dof,) for :func:`ratios` and :func:`hermite_ratios`."""
-    return Pinned(vmax, amax, jmax)
+    """Per-joint limits (dof,) for :func:`ratios` and :func:`hermite_ratios`, as reciprocals
+    (the kernels multiply; an infinite limit gives 0)."""
+    with np.errstate(divide='ignore'):
+        return Pinned(*(None if v is None else 1.0 / np.asarray(v, dtype=float) for v in (vmax, amax, jmax)))
 
 
 def evaluate(law: LawTables, t: np.ndarray, jerk: bool
