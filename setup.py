@@ -17,10 +17,10 @@ setup(
         ('share/' + PACKAGE + '/launch', sorted(glob('launch/*.launch.py'))),
         ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml'))),
     ],
-    # The time laws' compiled kernels (plain C, loaded with ctypes; timing/kernels.py). Optional: without a
-    # compiler the build goes on and the laws run their numpy code, with the same results.
-    ext_modules=[Extension(PACKAGE + '.timing._kernels', sources=[PACKAGE + '/timing/_kernels.c'],
-                           extra_compile_args=['-O2', '-fno-math-errno'], optional=True)],
+    # The compiled kernels (plain C, loaded with ctypes; core/compiled.py). Optional: without a
+    # compiler the build goes on and the library runs its numpy code, with the same results.
+    ext_modules=[Extension(PACKAGE + '.core._kernels', sources=[PACKAGE + '/core/_kernels.c'],
+                           extra_compile_args=['-O2', '-fno-math-errno', '-ffp-contract=off'], optional=True)],
     python_requires='>=3.10',
     install_requires=['numpy>=1.24', 'scipy>=1.10', 'pyyaml>=6', 'pin>=3.0'],
     extras_require={

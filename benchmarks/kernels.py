@@ -32,10 +32,10 @@ from speed import BLEND_JERK, BLEND_RADIUS, JERK_FACTOR, plan_cases, smooth_peak
 
 def compile_seconds() -> float:
     """Wall time of compiling _kernels.c into a shared object as setup.py does (cc -O2)."""
-    src = os.path.join(ROOT, 'geodesic_planner', 'timing', '_kernels.c')
+    src = os.path.join(ROOT, 'geodesic_planner', 'core', '_kernels.c')
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        subprocess.run(['cc', '-O2', '-fno-math-errno', '-fPIC', '-shared', f'-I{sysconfig.get_paths()["include"]}',
+        subprocess.run(['cc', '-O2', '-fno-math-errno', '-ffp-contract=off', '-fPIC', '-shared', f'-I{sysconfig.get_paths()["include"]}',
                         src, '-o', os.path.join(tmp, 'k.so')], check=True)
         return time.perf_counter() - t0
 
@@ -43,7 +43,7 @@ def compile_seconds() -> float:
 def load_ms() -> float:
     """Wall time of loading the built shared object with ctypes in a fresh interpreter."""
     import glob
-    built = glob.glob(os.path.join(ROOT, 'geodesic_planner', 'timing', '_kernels*.so'))[0]
+    built = glob.glob(os.path.join(ROOT, 'geodesic_planner', 'core', '_kernels*.so'))[0]
     code = ('import ctypes, sys, time; t0 = time.perf_counter(); ctypes.CDLL(sys.argv[1]); '
             'print((time.perf_counter() - t0) * 1e3)')
     return float(subprocess.run([sys.executable, '-c', code, built], capture_output=True, text=True,

@@ -9,6 +9,8 @@ from typing import Protocol
 
 import numpy as np
 
+from . import compiled
+
 __all__ = ['Interpolant', 'QuinticHermite', 'evaluate_polynomials', 'quintic_coefficients', 'split_intervals']
 
 
@@ -47,8 +49,11 @@ def evaluate_polynomials(c: np.ndarray, t: np.ndarray, times: np.ndarray, order:
     """Evaluate piecewise polynomials (N-1, 6, dof) at times (M,): position, velocity, acceleration
     and (``order`` 3) jerk.
 
-    ``order`` < 3 returns only the first ``order + 1`` of them.
+    ``order`` < 3 returns only the first ``order + 1`` of them. Compiled (:mod:`.compiled`) when
+    the kernels are on, with the same Horner steps.
     """
+    if compiled.active():
+        return compiled.polynomials(compiled.Pinned(t, c), times, min(order, 3))
     seg = np.minimum(np.maximum(np.searchsorted(t, times, side='right') - 1, 0), len(t) - 2)
     tau = (times - t[seg])[:, None]
     cs = c[seg]  # (M, 6, dof)
@@ -88,9 +93,14 @@ class QuinticHermite:
     def __init__(self, x: np.ndarray, y: np.ndarray, dy: np.ndarray, ddy: np.ndarray) -> None:
         self.x = np.asarray(x, dtype=float)
         self._coefficients = quintic_coefficients(self.x, *(np.asarray(a, dtype=float) for a in (y, dy, ddy)))
+        self._pinned: compiled.Pinned | None = None     # knots and coefficients for the kernel
 
     def __call__(self, xs: np.ndarray, order: int = 2) -> list[np.ndarray]:
         """Values and derivatives up to ``order`` (<= 3) at xs (k,): list of (k, d) arrays."""
+        if compiled.active():
+            if self._pinned is None:
+                self._pinned = compiled.Pinned(self.x, self._coefficients)
+            return list(compiled.polynomials(self._pinned, xs, min(order, 3)))
         return list(evaluate_polynomials(self._coefficients, self.x, xs, order=min(order, 3)))
 
 

@@ -1,90 +1,26 @@
-"""Compiled kernels of the time laws' hot loops, with the numpy code as the fallback.
+"""Compiled kernels of the time laws' hot loops (in ``core/_kernels.c``, loaded by
+:mod:`geodesic_planner.core.compiled`), with the numpy code as the fallback.
 
-``_kernels.c`` (built by setup.py with the package, optional) does sample by sample what the numpy
-code of :mod:`.smoothing`, :mod:`.box_filter`, :mod:`.sampling` and :mod:`.topp` does on whole
-arrays: evaluating a law, interpolating the path's derivatives and taking the ratios to the limits,
-and the two TOPP passes. The callers ask :func:`active` and otherwise run their numpy code, which
-stays the reference (``test/timing/test_kernels.py`` compares the two, and runs the laws with each).
-
-The kernels are off when the extension was not built (no C compiler at set-up), when the
-environment sets ``GP_KERNELS=numpy``, or inside :func:`numpy_only`; :data:`REASON` says why.
+They do sample by sample what the numpy code of :mod:`.smoothing`, :mod:`.box_filter`,
+:mod:`.sampling` and :mod:`.topp` does on whole arrays: evaluating a law, interpolating the path's
+derivatives and taking the ratios to the limits, the TOPP rows and passes. The callers ask
+:func:`active` and otherwise run their numpy code, which stays the reference
+(``test/timing/test_kernels.py`` compares the two, and runs the laws with each). Off without the
+extension, with ``GP_KERNELS=numpy`` or inside :func:`numpy_only` (:data:`REASON` says why).
 """
 from __future__ import annotations
 
-import contextlib
-import ctypes
-import os
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from ..core.compiled import LIB as _LIB
+from ..core.compiled import REASON, Pinned, active, numpy_only
+from ..core.compiled import f64 as _f64
+
 __all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_tables', 'evaluate', 'forward_pass',
            'hermite_ratios', 'limit_tables', 'numpy_only', 'path_tables', 'piecewise_tables', 'ratios']
-
-_P = ctypes.c_void_p
-_I = ctypes.c_int64
-_D = ctypes.c_double
-
-
-def _load() -> tuple[ctypes.CDLL | None, str]:
-    if os.environ.get('GP_KERNELS', '').strip().lower() == 'numpy':
-        return None, 'off: GP_KERNELS=numpy'
-    try:
-        from . import _kernels  # type: ignore[attr-defined]
-        lib = ctypes.CDLL(_kernels.__file__)
-    except (ImportError, OSError) as err:
-        return None, f'off: the compiled kernels are not built ({err}); the numpy code runs'
-    sigs = {
-        'gp_piecewise_evaluate': [_I, _P, _I, _P, _P, _D, _I, _P, _P, _P, _P, _P, _P],
-        'gp_box_evaluate': [_I, _P, _I, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P],
-        'gp_hermite_ratios': [_I, _P, _P, _P, _P, _I, _P, _I, _P, _P, _P, _P, _P, _P, _P, _P],
-        'gp_backward_pass': [_I, _I, _P, _P, _P, _P],
-        'gp_forward_pass': [_I, _I, _P, _P, _P, _P, _P],
-        'gp_topp_rows': [_I, _I] + [_P] * 15,
-    }
-    for name, args in sigs.items():
-        fn = getattr(lib, name)
-        fn.argtypes = args
-        fn.restype = None
-    return lib, 'on'
-
-
-_LIB, REASON = _load()
-_ON = [_LIB is not None]     # switched by numpy_only
-
-
-def active() -> bool:
-    """True when the compiled kernels are loaded and not switched off."""
-    return _ON[0]
-
-
-@contextlib.contextmanager
-def numpy_only() -> Iterator[None]:
-    """Within this block the laws run their numpy code (for tests and benchmarks; the switch is
-    process-wide, not per thread)."""
-    before = _ON[0]
-    _ON[0] = False
-    try:
-        yield
-    finally:
-        _ON[0] = before
-def _f64(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a, dtype=np.float64)
-
-
-class Pinned:
-    """Arrays in the layout the kernels read (C-contiguous float64; int64 for integers), kept
-    alive, with their addresses: made once per law, path sampling or set of limits (taking an
-    array's address costs about 2 us in numpy, more than a kernel call on a few hundred samples)."""
-
-    __slots__ = ('arrays', 'ptrs')
-
-    def __init__(self, *arrays: np.ndarray | None) -> None:
-        self.arrays = tuple(None if a is None else np.ascontiguousarray(
-            a, dtype=np.int64 if np.asarray(a).dtype.kind in 'iub' else np.float64) for a in arrays)
-        self.ptrs = tuple(None if a is None else a.ctypes.data for a in self.arrays)
 
 
 @dataclass(frozen=True, eq=False)

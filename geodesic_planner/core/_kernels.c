@@ -1,9 +1,10 @@
-/* Compiled kernels of the time laws' hot loops (loaded with ctypes by kernels.py).
+/* Compiled kernels of the library's hot loops (loaded with ctypes by core/compiled.py).
  *
  * Each function does, sample by sample, what the numpy code beside it does on whole arrays (same
  * formulas, same order of operations): the numpy code stays the fallback and the reference the
  * tests compare with. Arrays are C-contiguous float64; sizes are int64. No allocation, no Python.
  *
+ *   gp_polynomials         core.polynomials.evaluate_polynomials (the paths' quintic splines)
  *   gp_piecewise_evaluate  smoothing.PiecewiseLaw.evaluate (the smoothed law s(t) and derivatives)
  *   gp_box_evaluate        box_filter.BoxLaw.evaluate (the box-filtered law of the jerk law)
  *   gp_hermite_ratios      sampling.PathSamples.interpolate_t (+ third_derivative_t) and the
@@ -61,6 +62,37 @@ static double nmax(double a, double b) { return (isnan(a) || a >= b) ? a : b; }
 static double nmin(double a, double b) { return (isnan(a) || a <= b) ? a : b; }
 static double clampd(double x, double lo, double hi) { return nmin(nmax(x, lo), hi); }
 static idx_t clampi(idx_t x, idx_t lo, idx_t hi) { return x < lo ? lo : (x > hi ? hi : x); }
+
+/* Piecewise quintics (polynomials.evaluate_polynomials): segment i of knots t (N,) has coefficients
+ * c[i] (6, dof) in ascending powers of tau = x - t[i]. At times x (m,): position and derivatives up
+ * to order (<= 3) into out (order + 1, m, dof), by the same Horner steps as the numpy code. */
+void gp_polynomials(idx_t m, const double *x, idx_t N, const double *t, const double *c, idx_t dof,
+                    idx_t order, double *out)
+{
+    idx_t hint = 0;
+    const idx_t plane = m * dof;
+    for (idx_t i = 0; i < m; ++i) {
+        const idx_t seg = clampi(upper_hint(t, N, x[i], &hint) - 1, 0, N - 2);
+        const double tau = x[i] - t[seg];
+        const double *cs = c + seg * 6 * dof;
+        for (idx_t j = 0; j < dof; ++j) {
+            const double c5 = cs[5 * dof + j];
+            double pos = c5, vel = 5.0 * c5, acc = 20.0 * c5, jerk = 60.0 * c5;
+            for (int k = 4; k >= 0; --k) {
+                const double ck = cs[k * dof + j];
+                pos = pos * tau + ck;
+                if (k >= 1) vel = vel * tau + k * ck;
+                if (k >= 2) acc = acc * tau + k * (k - 1) * ck;
+                if (k >= 3) jerk = jerk * tau + k * (k - 1) * (k - 2) * ck;
+            }
+            double *o = out + i * dof + j;
+            o[0] = pos;
+            if (order >= 1) o[plane] = vel;
+            if (order >= 2) o[2 * plane] = acc;
+            if (order >= 3) o[3 * plane] = jerk;
+        }
+    }
+}
 
 /* The smoothed law at times t (m,). pieces (6, L): tau, duration, s_start, span, s_end, T*;
  * seg (6, S): start, s0, v0, u, S1, S2 of each s* segment, searched by seg_key (S,).
@@ -334,6 +366,6 @@ void gp_topp_rows(idx_t n, idx_t dof, const double *s, const double *aL, const d
 
 static struct PyModuleDef kernels_module = {
     PyModuleDef_HEAD_INIT, .m_name = "_kernels",
-    .m_doc = "Compiled kernels of the time laws (see kernels.py).", .m_size = -1};
+    .m_doc = "Compiled kernels of the library (see core/compiled.py).", .m_size = -1};
 
 PyMODINIT_FUNC PyInit__kernels(void) { return PyModule_Create(&kernels_module); }

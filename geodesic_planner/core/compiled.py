@@ -1,0 +1,105 @@
+"""The package's compiled kernels (``_kernels.c``), loaded with ctypes, and the switch to numpy.
+
+``_kernels.c`` is built by setup.py as an optional extension (``pip install -e .`` in the set-up
+compiles it). It does, sample by sample, what numpy code of the library does on whole arrays:
+the piecewise polynomials of the paths' splines (:mod:`.polynomials`, here) and the time laws'
+hot loops (:mod:`geodesic_planner.timing.kernels`). Callers ask :func:`active` and otherwise run
+their numpy code, which stays the reference: ``test/timing/test_kernels.py`` compares the two.
+
+The kernels are off when the extension was not built (no C compiler at set-up), when the
+environment sets ``GP_KERNELS=numpy``, or inside :func:`numpy_only`; :data:`REASON` says why.
+"""
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+
+__all__ = ['LIB', 'REASON', 'Pinned', 'active', 'f64', 'numpy_only', 'polynomials']
+
+_P = ctypes.c_void_p
+_I = ctypes.c_int64
+_D = ctypes.c_double
+
+#: Argument types of the kernels (each returns nothing; arrays are passed by address).
+SIGNATURES: dict[str, list[Any]] = {
+    'gp_polynomials': [_I, _P, _I, _P, _P, _I, _I, _P],
+    'gp_piecewise_evaluate': [_I, _P, _I, _P, _P, _D, _I, _P, _P, _P, _P, _P, _P],
+    'gp_box_evaluate': [_I, _P, _I] + [_P] * 13,
+    'gp_hermite_ratios': [_I, _P, _P, _P, _P, _I, _P, _I, _P, _P, _P, _P, _P, _P, _P, _P],
+    'gp_backward_pass': [_I, _I, _P, _P, _P, _P],
+    'gp_forward_pass': [_I, _I, _P, _P, _P, _P, _P],
+    'gp_topp_rows': [_I, _I] + [_P] * 15,
+}
+
+
+def _load() -> tuple[ctypes.CDLL | None, str]:
+    if os.environ.get('GP_KERNELS', '').strip().lower() == 'numpy':
+        return None, 'off: GP_KERNELS=numpy'
+    try:
+        from . import _kernels  # type: ignore[attr-defined]
+        lib = ctypes.CDLL(_kernels.__file__)
+    except (ImportError, OSError) as err:
+        return None, f'off: the compiled kernels are not built ({err}); the numpy code runs'
+    for name, args in SIGNATURES.items():
+        fn = getattr(lib, name)
+        fn.argtypes = args
+        fn.restype = None
+    return lib, 'on'
+
+
+LIB, REASON = _load()
+_ON = [LIB is not None]     # switched by numpy_only
+
+
+def active() -> bool:
+    """True when the compiled kernels are loaded and not switched off."""
+    return _ON[0]
+
+
+@contextlib.contextmanager
+def numpy_only() -> Iterator[None]:
+    """Within this block the library runs its numpy code (for tests and benchmarks; the switch is
+    process-wide, not per thread)."""
+    before = _ON[0]
+    _ON[0] = False
+    try:
+        yield
+    finally:
+        _ON[0] = before
+
+
+def f64(a: np.ndarray) -> np.ndarray:
+    """``a`` as a C-contiguous float64 array (no copy when it already is one)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+class Pinned:
+    """Arrays in the layout the kernels read (C-contiguous float64; int64 for integers), kept
+    alive, with their addresses: made once per table (taking an array's address costs 1-2 us in
+    numpy, as much as a kernel call on a few hundred samples)."""
+
+    __slots__ = ('arrays', 'ptrs')
+
+    def __init__(self, *arrays: np.ndarray | None) -> None:
+        self.arrays = tuple(None if a is None else np.ascontiguousarray(
+            a, dtype=np.int64 if np.asarray(a).dtype.kind in 'iub' else np.float64) for a in arrays)
+        self.ptrs = tuple(None if a is None else a.ctypes.data for a in self.arrays)
+
+
+def polynomials(tables: Pinned, times: np.ndarray, order: int) -> tuple[np.ndarray, ...]:
+    """:func:`.polynomials.evaluate_polynomials` compiled: ``tables`` pins the knots (N,) and the
+    coefficients (N - 1, 6, dof); values and derivatives up to ``order`` (<= 3) at ``times`` (M,),
+    each (M, dof)."""
+    assert LIB is not None
+    t, c = tables.arrays
+    assert t is not None and c is not None
+    times = f64(times).reshape(-1)
+    m, dof = times.size, c.shape[2]
+    out = np.empty((order + 1, m, dof))
+    LIB.gp_polynomials(m, times.ctypes.data, t.size, tables.ptrs[0], tables.ptrs[1], dof, order, out.ctypes.data)
+    return tuple(out)
