@@ -4,6 +4,7 @@
  * formulas, same order of operations): the numpy code stays the fallback and the reference the
  * tests compare with. Arrays are C-contiguous float64; sizes are int64. No allocation, no Python.
  *
+ *   gp_frames              core.kinematics.Chain frames and generators (forward kinematics)
  *   gp_polynomials         core.polynomials.evaluate_polynomials (the paths' quintic splines)
  *   gp_piecewise_evaluate  smoothing.PiecewiseLaw.evaluate (the smoothed law s(t) and derivatives)
  *   gp_box_evaluate        box_filter.BoxLaw.evaluate (the box-filtered law of the jerk law)
@@ -62,6 +63,53 @@ static double nmax(double a, double b) { return (isnan(a) || a >= b) ? a : b; }
 static double nmin(double a, double b) { return (isnan(a) || a <= b) ? a : b; }
 static double clampd(double x, double lo, double hi) { return nmin(nmax(x, lo), hi); }
 static idx_t clampi(idx_t x, idx_t lo, idx_t hi) { return x < lo ? lo : (x > hi ? hi : x); }
+
+/* Serial-chain kinematics (kinematics.Chain._frames and _generators) at q (N, dof): fixed (dof + 1,
+ * 4, 4) the constant transforms with every joint axis folded onto z, prismatic (dof,) nonzero for
+ * a prismatic joint. Outputs (each may be NULL but T): Tj (N, dof, 4, 4) base -> joint frame before
+ * its motion, T (N, 4, 4) base -> tool, X (N, dof, 4, 4) the spatial twist matrices (dT/dq_k = X_k T). */
+void gp_frames(idx_t N, idx_t dof, const double *q, const double *fixed, const int64_t *prismatic,
+               double *Tj, double *T_out, double *X)
+{
+    for (idx_t n = 0; n < N; ++n) {
+        double T[16], MF[16], R[16];
+        for (int a = 0; a < 16; ++a) T[a] = fixed[a];
+        for (idx_t i = 0; i < dof; ++i) {
+            const double *F = fixed + 16 * (i + 1);
+            const double qi = q[n * dof + i];
+            if (Tj) for (int a = 0; a < 16; ++a) Tj[(n * dof + i) * 16 + a] = T[a];
+            if (X) {
+                double *x = X + (n * dof + i) * 16;
+                const double u0 = T[2], u1 = T[6], u2 = T[10];          /* the joint axis (z) */
+                const double p0 = T[3], p1 = T[7], p2 = T[11];          /* its origin */
+                for (int a = 0; a < 16; ++a) x[a] = 0.0;
+                if (prismatic[i]) {
+                    x[3] = u0; x[7] = u1; x[11] = u2;
+                } else {
+                    x[1] = -u2; x[2] = u1; x[4] = u2; x[6] = -u0; x[8] = -u1; x[9] = u0;
+                    x[3] = p1 * u2 - p2 * u1; x[7] = p2 * u0 - p0 * u2; x[11] = p0 * u1 - p1 * u0;
+                }
+            }
+            /* M_i F_{i+1}: a rotation about z (rows 0 and 1) or a translation along z (row 2) */
+            for (int a = 0; a < 16; ++a) MF[a] = F[a];
+            if (prismatic[i]) {
+                for (int c = 0; c < 4; ++c) MF[8 + c] += qi * F[12 + c];
+            } else {
+                const double co = cos(qi), si = sin(qi);
+                for (int c = 0; c < 4; ++c) {
+                    MF[c] = co * F[c] - si * F[4 + c];
+                    MF[4 + c] = si * F[c] + co * F[4 + c];
+                }
+            }
+            for (int r = 0; r < 4; ++r)
+                for (int c = 0; c < 4; ++c)
+                    R[4 * r + c] = T[4 * r] * MF[c] + T[4 * r + 1] * MF[4 + c] + T[4 * r + 2] * MF[8 + c]
+                                   + T[4 * r + 3] * MF[12 + c];
+            for (int a = 0; a < 16; ++a) T[a] = R[a];
+        }
+        for (int a = 0; a < 16; ++a) T_out[n * 16 + a] = T[a];
+    }
+}
 
 /* Piecewise quintics (polynomials.evaluate_polynomials): segment i of knots t (N,) has coefficients
  * c[i] (6, dof) in ascending powers of tau = x - t[i]. At times x (m,): position and derivatives up

@@ -2,7 +2,8 @@
 
 ``_kernels.c`` is built by setup.py as an optional extension (``pip install -e .`` in the set-up
 compiles it). It does, sample by sample, what numpy code of the library does on whole arrays:
-the piecewise polynomials of the paths' splines (:mod:`.polynomials`, here) and the time laws'
+the serial chains' forward kinematics (:mod:`.kinematics`) and the piecewise polynomials of the
+paths' splines (:mod:`.polynomials`), here, and the time laws'
 hot loops (:mod:`geodesic_planner.timing.kernels`). Callers ask :func:`active` and otherwise run
 their numpy code, which stays the reference: ``test/timing/test_kernels.py`` compares the two.
 
@@ -19,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['LIB', 'REASON', 'Pinned', 'active', 'f64', 'numpy_only', 'polynomials']
+__all__ = ['LIB', 'REASON', 'Pinned', 'active', 'f64', 'frames', 'generators', 'numpy_only', 'polynomials']
 
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
@@ -27,6 +28,7 @@ _D = ctypes.c_double
 
 #: Argument types of the kernels (each returns nothing; arrays are passed by address).
 SIGNATURES: dict[str, list[Any]] = {
+    'gp_frames': [_I, _I, _P, _P, _P, _P, _P, _P],
     'gp_polynomials': [_I, _P, _I, _P, _P, _I, _I, _P],
     'gp_piecewise_evaluate': [_I, _P, _I, _P, _P, _D, _I, _P, _P, _P, _P, _P, _P],
     'gp_box_evaluate': [_I, _P, _I] + [_P] * 13,
@@ -89,6 +91,30 @@ class Pinned:
         self.arrays = tuple(None if a is None else np.ascontiguousarray(
             a, dtype=np.int64 if np.asarray(a).dtype.kind in 'iub' else np.float64) for a in arrays)
         self.ptrs = tuple(None if a is None else a.ctypes.data for a in self.arrays)
+
+
+def _chain(chain: Pinned, q: np.ndarray, joint_frames: bool) -> tuple[np.ndarray, np.ndarray]:
+    assert LIB is not None
+    q = f64(q)
+    N, dof = q.shape
+    T = np.empty((N, 4, 4))
+    out = np.empty((N, dof, 4, 4))
+    LIB.gp_frames(N, dof, q.ctypes.data, chain.ptrs[0], chain.ptrs[1], out.ctypes.data if joint_frames else None,
+                  T.ctypes.data, None if joint_frames else out.ctypes.data)
+    return out, T
+
+
+def frames(chain: Pinned, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`.kinematics.Chain.frames` compiled: ``chain`` pins the chain's constant transforms
+    (dof + 1, 4, 4), axes folded onto z, and which joints are prismatic (dof,); at q (N, dof) the
+    joint frames (N, dof, 4, 4) and the tool poses (N, 4, 4)."""
+    return _chain(chain, q, True)
+
+
+def generators(chain: Pinned, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`.kinematics.Chain.generators` compiled (``chain`` as :func:`frames`): the spatial
+    twist matrices (N, dof, 4, 4) and the tool poses (N, 4, 4)."""
+    return _chain(chain, q, False)
 
 
 def polynomials(tables: Pinned, times: np.ndarray, order: int) -> tuple[np.ndarray, ...]:

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import compiled
 from .chunks import in_chunks
 from .errors import KinematicsError, RequestError
 from .transforms import check_transform, hat
@@ -143,6 +144,7 @@ class Chain:
         self._prismatic = np.array([j.kind == PRISMATIC for j in self.joints])
         self._revolute_mask = (~self._prismatic).astype(float)[:, None]
         self._all_revolute = not bool(self._prismatic.any())
+        self._kernel_chain = compiled.Pinned(self._fixed, self._prismatic)   # for the compiled kinematics
         self.joint_names: list[str] = [j.name for j in self.joints]
         if len(set(self.joint_names)) != len(self.joint_names):
             raise KinematicsError(f'robot {name!r}: duplicate joint names {self.joint_names}')
@@ -230,6 +232,8 @@ class Chain:
         return in_chunks(self._frames, q)
 
     def _frames(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if compiled.active():
+            return compiled.frames(self._kernel_chain, q)
         N = q.shape[0]
         F = self._fixed[1:]                      # (dof, 4, 4): F_{i+1}
         # M_i F_{i+1}, M_i a rotation about / translation along z: row operations on F_{i+1},
@@ -305,6 +309,8 @@ class Chain:
         return in_chunks(self._generators, q)
 
     def _generators(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if compiled.active():
+            return compiled.generators(self._kernel_chain, q)
         Tj, T = self._frames(q)
         u = Tj[..., :3, 2]  # joint axes in the base frame (all axes were folded onto z)
         p = Tj[..., :3, 3]
