@@ -31,7 +31,10 @@ import json, sys, time
 import numpy as np
 from speed import BLEND_JERK, BLEND_RADIUS, JERK_FACTOR, plan_cases, smooth_peak_jerk
 from blends import sequences
-from geodesic_planner.core import compiled
+try:
+    from geodesic_planner.core.compiled import REASON
+except ImportError:          # a tree from before the compiled kernels
+    REASON = 'none in this tree'
 
 def median_ms(fn, repeats):
     fn()
@@ -42,7 +45,7 @@ def median_ms(fn, repeats):
         times.append(time.perf_counter() - t0)
     return float(np.median(times)) * 1e3
 
-out = {'kernels': compiled.REASON}
+out = {'kernels': REASON}
 for case in plan_cases():
     path = case.plan()
     jmax = JERK_FACTOR * smooth_peak_jerk(path)

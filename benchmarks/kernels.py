@@ -4,7 +4,7 @@
 Run:  .venv/bin/python benchmarks/kernels.py [--repeats 15]
 
 For each case of ``speed.py`` (ur5e, paper 3R, panda: ``timed()``, ``timed(max_jerk)``, and the
-plan itself, which the kernels do not touch) and the blended ur5e sequence under a jerk limit,
+plan itself: its kinematics and splines are compiled too) and the blended ur5e sequence under a jerk limit,
 the call runs alternately with the kernels and inside ``kernels.numpy_only()``, ``--repeats``
 times each after one warm-up of each: both see the same machine load. Prints the medians and
 their ratio, the durations both ways (their largest relative difference), and what the kernels
@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         jmax = JERK_FACTOR * smooth_peak_jerk(path)
         items += [(case.name, 'timed()', lambda p=path: p.timed()),
                   (case.name, f'timed(max_jerk {JERK_FACTOR:.0%})', lambda p=path, j=jmax: p.timed(max_jerk=j)),
-                  (case.name, 'plan (no kernels)', case.plan)]
+                  (case.name, 'plan', case.plan)]
     name, planner, poses, q0 = sequences()[0]
     seq = planner.plan_through(poses, start_joints=q0, blend_radius=BLEND_RADIUS)
     items.append((f'{name}, r = {BLEND_RADIUS:g} m', f'blended timed(max_jerk {BLEND_JERK:g})',
