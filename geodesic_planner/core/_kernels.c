@@ -6,8 +6,10 @@
  *
  *   gp_frames              core.kinematics.Chain frames and generators (forward kinematics)
  *   gp_polynomials         core.polynomials.evaluate_polynomials (the paths' quintic splines)
+ *   gp_build_piecewise     smoothing.build_piecewise_law (the smoothed law's tables)
  *   gp_piecewise_evaluate  smoothing.PiecewiseLaw.evaluate (the smoothed law s(t) and derivatives)
  *   gp_box_evaluate        box_filter.BoxLaw.evaluate (the box-filtered law of the jerk law)
+ *   gp_refine              sampling.PathSamples.refined (finer steps, q' and q'' cubic Hermite)
  *   gp_hermite_ratios      sampling.PathSamples.interpolate_t (+ third_derivative_t) and the
  *                          per-sample ratios to the velocity, acceleration (and jerk) limits
  *   gp_backward_pass       topp: hi_k = min(static_k, min_j A_kj hi_{k+1} + B_kj), hi_n = 0
@@ -256,6 +258,116 @@ void gp_box_evaluate(idx_t m, const double *t, idx_t L, const double *offs, cons
         sd_out[i] = sd;
         sdd_out[i] = sdd;
         if (sddd_out) sddd_out[i] = sddd;
+    }
+}
+
+/* smoothing.build_piecewise_law: the optimal profile x (n + 1,) on nodes s (n + 1,), split at its
+ * rests (indices rests (L + 1,), x <= 0 there) into L rest-to-rest pieces, each smoothed by a kernel
+ * of half-width tau. K = rests[L] - rests[0] steps. Outputs: pieces (6, L) (tau, duration, s_start,
+ * span, s_end, T*), offsets (L + 1,), seg (6, K + 2 L) and seg_key (K + 2 L,), node_s and node_t
+ * (K + L,), key_step (1,). Same formulas and summation order as the numpy code; valley_depth is
+ * smoothing.VALLEY_DEPTH. node_t serves as scratch for each piece's running maxima from the right
+ * before it is filled. */
+void gp_build_piecewise(const double *s, const double *x, idx_t L, const idx_t *rests, double smoothing,
+                        double valley_depth, double *pieces, double *offs, double *seg, double *seg_key, double *node_s,
+                        double *node_t, double *key_step_out)
+{
+    const idx_t K = rests[L] - rests[0], S = K + 2 * L;
+    for (idx_t i = 0; i < 6 * S; ++i) seg[i] = 0.0;
+    double dur_max = 0.0;
+    offs[0] = 0.0;
+    for (idx_t p = 0; p < L; ++p) {
+        const idx_t a = rests[p], b = rests[p + 1];
+        const double start_s = s[a];
+        /* deep speed valleys inside the piece (smoothing._valleys) */
+        double *right = node_t, left = -INFINITY, valleys = 0.0;
+        right[b - a] = sqrt(nmax(x[b], 0.0));
+        for (idx_t i = b - 1; i >= a; --i) right[i - a] = nmax(right[i - a + 1], sqrt(nmax(x[i], 0.0)));
+        int prev_deep = 0;
+        for (idx_t i = a; i <= b; ++i) {
+            const double w = sqrt(nmax(x[i], 0.0));
+            left = nmax(left, w);
+            const int deep = w < valley_depth * nmin(left, right[i - a]);
+            if (i > a && deep && !prev_deep) valleys += 1.0;
+            prev_deep = deep;
+        }
+        /* the piece's s* steps: running sums of time and of the first and second integrals */
+        double t_acc = 0.0, S1_acc = 0.0, S2_acc = 0.0, rel1 = 0.0;
+        for (idx_t k = a; k < b; ++k) {
+            const double rel0 = s[k] - start_s;
+            rel1 = s[k + 1] - start_s;
+            const double dl = rel1 - rel0, v0 = sqrt(x[k]), v1 = sqrt(x[k + 1]);
+            const double dt = 2.0 * dl / (v0 + v1), u = (x[k + 1] - x[k]) / (2.0 * dl);
+            const double dt2 = dt * dt, dt3 = pow(dt, 3.0), dt4 = pow(dt, 4.0);
+            const double t0 = t_acc, S1s = S1_acc, S2s = S2_acc;
+            t_acc += dt;
+            S1_acc += rel0 * dt + v0 * dt2 / 2.0 + u * dt3 / 6.0;
+            S2_acc += S1s * dt + rel0 * dt2 / 2.0 + v0 * dt3 / 6.0 + u * dt4 / 24.0;
+            const idx_t j = k - rests[0] + 2 * p + 1;            /* the step's segment */
+            seg[j] = t0; seg[S + j] = rel0; seg[2 * S + j] = v0; seg[3 * S + j] = u;
+            seg[4 * S + j] = S1s; seg[5 * S + j] = S2s;
+            node_s[k - rests[0] + p] = start_s + rel0;
+        }
+        const double t_star = t_acc, tau = 0.5 * smoothing * t_star / (1.0 + valleys);
+        const double dur = t_star + 2.0 * tau;
+        dur_max = nmax(dur_max, dur);
+        offs[p + 1] = offs[p] + dur;
+        pieces[p] = tau; pieces[L + p] = dur; pieces[2 * L + p] = start_s; pieces[3 * L + p] = rel1;
+        pieces[4 * L + p] = s[b]; pieces[5 * L + p] = t_star;
+        const idx_t after = b - rests[0] - 1 + 2 * p + 2;       /* the rest after the piece */
+        seg[after] = t_star; seg[S + after] = rel1; seg[4 * S + after] = S1_acc; seg[5 * S + after] = S2_acc;
+        node_s[b - rests[0] + p] = start_s + rel1;
+    }
+    const double key_step = ldexp(1.0, (int)ceil(log2(4.0 * nmax(dur_max, 1e-300))));
+    *key_step_out = key_step;
+    for (idx_t p = 0; p < L; ++p) {
+        const idx_t a = rests[p], b = rests[p + 1];
+        const double base = offs[p] + pieces[p];                 /* s* delayed by tau */
+        for (idx_t k = a; k < b; ++k) {
+            const idx_t j = k - rests[0] + 2 * p + 1;
+            seg_key[j] = L > 1 ? seg[j] + (double)p * key_step : seg[j];
+            node_t[k - rests[0] + p] = base + seg[j];
+        }
+        const idx_t after = b - rests[0] - 1 + 2 * p + 2, before = after - (b - a) - 1;
+        seg_key[after] = L > 1 ? seg[after] + (double)p * key_step : seg[after];
+        seg_key[before] = ((double)p - 0.5) * key_step;
+        node_t[b - rests[0] + p] = offs[p] + pieces[p] + pieces[5 * L + p];
+    }
+    seg_key[0] = -INFINITY;
+}
+
+/* sampling.PathSamples.refined: the n steps of nodes s (n + 1,) each split into `factor` equal
+ * parts, q' and q'' at the new nodes cubic Hermite (coef (8, dof, n) as in gp_hermite_ratios), the
+ * one-sided values aL, aR, bL, bR (n + 1, dof) kept at the old nodes. Outputs s_out (m,) and
+ * aL_out, aR_out, bL_out, bR_out (m, dof), m = n factor + 1. */
+void gp_refine(idx_t n, idx_t dof, idx_t factor, const double *s, const double *aL, const double *aR,
+               const double *bL, const double *bR, const double *coef, double *s_out, double *aL_out,
+               double *aR_out, double *bL_out, double *bR_out)
+{
+    const idx_t plane = dof * n;
+    for (idx_t k = 0; k <= n; ++k) {
+        const idx_t o = k * factor;
+        s_out[o] = s[k];
+        for (idx_t j = 0; j < dof; ++j) {
+            aL_out[o * dof + j] = aL[k * dof + j]; aR_out[o * dof + j] = aR[k * dof + j];
+            bL_out[o * dof + j] = bL[k * dof + j]; bR_out[o * dof + j] = bR[k * dof + j];
+        }
+        if (k == n) break;
+        const double h = s[k + 1] - s[k];
+        for (idx_t i = 1; i < factor; ++i) {
+            const double extra = s[k] + h * ((double)i / (double)factor), r = extra - s[k];
+            s_out[o + i] = extra;
+            for (idx_t j = 0; j < dof; ++j) {
+                const double *c = coef + j * n + k;
+                double a = c[3 * plane];
+                a *= r; a += c[2 * plane]; a *= r; a += c[plane]; a *= r; a += c[0];
+                double b = c[7 * plane];
+                b *= r; b += c[6 * plane]; b *= r; b += c[5 * plane]; b *= r; b += c[4 * plane];
+                const idx_t at = (o + i) * dof + j;
+                aL_out[at] = aR_out[at] = a;
+                bL_out[at] = bR_out[at] = b;
+            }
+        }
     }
 }
 

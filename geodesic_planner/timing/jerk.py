@@ -107,13 +107,6 @@ class _Checker:
         return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target))
 
     @functools.cached_property
-    def _inner(self) -> np.ndarray:
-        """Indices of the nodes where q'' or q''' jumps but the law does not rest."""
-        ps = self.ps
-        return np.flatnonzero(((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1)
-                               | (ps.cL != ps.cR).any(axis=1)) & ~ps.stop)
-
-    @functools.cached_property
     def _limits(self) -> kernels.Pinned:
         lim = self.limits
         jmax = lim.max_jerk if lim.max_jerk is not None else np.full(lim.max_velocity.size, np.inf)
@@ -200,7 +193,7 @@ class _Checker:
             if self.tool is not None:
                 rv = max(rv, float(np.max(self.tool.exact_ratios(q_x, a_x, sd[top]))))
         # Breakpoints where q'' or q''' jumps (not a rest): both one-sided values where crossed.
-        inner = self._inner
+        inner = ps.jumps3
         if inner.size:
             # the search compares widths: the crossing interpolated between its samples suffices
             crossing = _crossing_times(law, t, s, ps.s[inner], newton=6 if exact else 0)

@@ -19,8 +19,9 @@ from ..core.compiled import LIB as _LIB
 from ..core.compiled import REASON, Pinned, active, numpy_only
 from ..core.compiled import f64 as _f64
 
-__all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_tables', 'evaluate', 'forward_pass',
-           'hermite_ratios', 'limit_tables', 'numpy_only', 'path_tables', 'piecewise_tables', 'ratios']
+__all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_tables', 'build_piecewise', 'evaluate',
+           'forward_pass', 'hermite_ratios', 'limit_tables', 'numpy_only', 'path_tables', 'piecewise_tables', 'ratios',
+           'refine']
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,6 +31,46 @@ class LawTables:
     fn: Any
     const: tuple[Any, ...]
     keep: Pinned | tuple[Pinned, ...]
+
+
+def build_piecewise(s: np.ndarray, x: np.ndarray, rests: np.ndarray, smoothing: float, valley_depth: float
+                    ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`.smoothing.build_piecewise_law` compiled, on nodes s (n + 1,) with the optimal profile x
+    (n + 1,) and its rests (L + 1,): t_offsets (L + 1,), pieces (6, L), key_step, seg_key (S,),
+    seg (6, S), node_s and node_t (K + L,), with K steps and S = K + 2 L segments."""
+    assert _LIB is not None
+    s, x = _f64(s), _f64(x)
+    rests = np.ascontiguousarray(rests, dtype=np.int64)
+    L = rests.size - 1
+    K = int(rests[-1] - rests[0])
+    S, M = K + 2 * L, K + L
+    sizes = (6 * L, L + 1, 6 * S, S, M, M, 1)
+    block = np.empty(sum(sizes))
+    base = block.ctypes.data
+    ptrs, parts, at = [], [], 0
+    for size in sizes:
+        ptrs.append(base + 8 * at)
+        parts.append(block[at:at + size])
+        at += size
+    _LIB.gp_build_piecewise(s.ctypes.data, x.ctypes.data, L, rests.ctypes.data, float(smoothing), float(valley_depth),
+                            *ptrs)
+    pieces, offs, seg, seg_key, node_s, node_t, key_step = parts
+    return offs, pieces.reshape(6, L), float(key_step[0]), seg_key, seg.reshape(6, S), node_s, node_t
+
+
+def refine(rows: Pinned, coef: Pinned, factor: int) -> tuple[np.ndarray, ...]:
+    """:meth:`.sampling.PathSamples.refined` compiled: ``rows`` its ``kernel_rows`` (s, aL, aR,
+    bL, bR, stop), ``coef`` its ``kernel_tables`` (s, coef); s, aL, aR, bL, bR on the finer nodes."""
+    assert _LIB is not None
+    s, aL = rows.arrays[0], rows.arrays[1]
+    assert s is not None and aL is not None
+    n, dof = s.size - 1, aL.shape[1]
+    m = n * factor + 1
+    block = np.empty(m + 4 * m * dof)
+    base = block.ctypes.data
+    outs = (base + 8 * (m + i * m * dof) for i in range(4))
+    _LIB.gp_refine(n, dof, factor, *rows.ptrs[:5], coef.ptrs[1], base, *outs)
+    return (block[:m], *(block[m + i * m * dof:m + (i + 1) * m * dof].reshape(m, dof) for i in range(4)))
 
 
 def piecewise_tables(t_offsets: np.ndarray, pieces: np.ndarray, key_step: float, seg_key: np.ndarray,

@@ -52,11 +52,17 @@ class PathSamples:
             return self
         n = self.s.size - 1
         dof = self.aR.shape[1]
+        m = n * factor + 1
+        zeros = np.zeros((m, dof))
+        stop = np.zeros(m, dtype=bool)
+        stop[::factor] = self.stop
+        if kernels.active():      # the same values, compiled
+            s, aL, aR, bL, bR = kernels.refine(self.kernel_rows, self.kernel_tables, factor)
+            return PathSamples(s, aL, aR, bL, bR, zeros, zeros, stop)
         f = factor - 1
         extra = self.s[:-1, None] + np.diff(self.s)[:, None] * (np.arange(1, factor) / factor)
         k = np.repeat(np.arange(n), f)
         a, b = self._interpolate_steps(k, extra.reshape(-1) - self.s[k])
-        m = n * factor + 1
 
         def merge(node_vals: np.ndarray, extra_vals: np.ndarray) -> np.ndarray:
             """Node values (n+1, ...) and each step's extra values (n, factor - 1, ...) interleaved."""
@@ -69,9 +75,6 @@ class PathSamples:
 
         a = a.T.reshape(n, f, dof)
         b = b.T.reshape(n, f, dof)
-        zeros = np.zeros((m, dof))
-        stop = np.zeros(m, dtype=bool)
-        stop[::factor] = self.stop
         return PathSamples(merge(self.s, extra), merge(self.aL, a), merge(self.aR, a),
                             merge(self.bL, b), merge(self.bR, b), zeros, zeros, stop)
 
@@ -104,6 +107,17 @@ class PathSamples:
     def kernel_tables(self) -> kernels.Pinned:
         """The cubic-Hermite tables of q' and q'' for the compiled :func:`.kernels.ratios`."""
         return kernels.path_tables(self.s, self.coef)
+
+    @functools.cached_property
+    def jumps(self) -> np.ndarray:
+        """Indices of the nodes where q' or q'' jumps (a breakpoint) but the motion does not rest."""
+        return np.flatnonzero(((self.aL != self.aR).any(axis=1) | (self.bL != self.bR).any(axis=1)) & ~self.stop)
+
+    @functools.cached_property
+    def jumps3(self) -> np.ndarray:
+        """:attr:`jumps`, and the nodes where only q''' jumps (for the jerk checks)."""
+        return np.flatnonzero(((self.aL != self.aR).any(axis=1) | (self.bL != self.bR).any(axis=1)
+                               | (self.cL != self.cR).any(axis=1)) & ~self.stop)
 
     @functools.cached_property
     def kernel_rows(self) -> kernels.Pinned:

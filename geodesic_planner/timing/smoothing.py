@@ -235,6 +235,8 @@ def build_piecewise_law(s_nodes: np.ndarray, x: np.ndarray, smoothing: float) ->
     per-piece running sums are row-wise sums of a padded (pieces, steps) array.
     """
     rests = np.flatnonzero(x <= 0.0)
+    if kernels.active():        # the same tables, compiled
+        return PiecewiseLaw(*kernels.build_piecewise(s_nodes, x, rests, smoothing, VALLEY_DEPTH))
     n_steps = np.diff(rests)                       # (L,) steps per piece
     L = n_steps.size
     k = np.arange(rests[0], rests[-1])             # steps, piece after piece
@@ -407,7 +409,7 @@ class LimitCheck:
     """
 
     factor: float          # uniform time stretch (>= 1) that keeps every sample within the limits
-    t: np.ndarray          # (M,) check times of the law, s
+    t: np.ndarray          # (M,) check times of the law, s (not in order)
     need: np.ndarray       # (M,) speed factor over the limits at each (interpolated path derivatives)
 
 
@@ -458,12 +460,14 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
     # Around the highest local peaks, samples at a quarter of the uniform spacing.
     need = np.maximum(rv_t, np.sqrt(ra_t))
     extra = peak_samples(t_chk, need, law.duration / (m - 1), law.duration)
-    if extra.size:
+    inner = ps.jumps
+    if extra.size:       # appended: only the breakpoints' crossing times need the samples in order
         more = _ratios(ps, law, extra, vmax, amax, tool)
-        order = np.argsort(np.concatenate([t_chk, extra]), kind='stable')
-        t_chk = np.concatenate([t_chk, extra])[order]
-        s, sd, sdd, rv_t, ra_t = (np.concatenate([u, v])[order]
-                                  for u, v in zip((s, sd, sdd, rv_t, ra_t), more))
+        t_chk, s, sd, sdd, rv_t, ra_t = (np.concatenate([u, v]) for u, v in zip((t_chk, s, sd, sdd, rv_t, ra_t),
+                                                                              (extra, *more)))
+        if inner.size:
+            order = np.argsort(t_chk, kind='stable')
+            t_chk, s, sd, sdd, rv_t, ra_t = (u[order] for u in (t_chk, s, sd, sdd, rv_t, ra_t))
     rv, ra = float(rv_t.max()), float(ra_t.max())
     # The samples closest to a limit are verified with the exact path derivatives.
     need = np.maximum(rv_t, np.sqrt(ra_t))
@@ -476,7 +480,6 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
     ra = max(ra, float(np.max(np.abs(a_x * sdd[top, None] + b_x * (sd[top] ** 2)[:, None]) / amax)))
     # At breakpoints q'' (or q') may jump: check both one-sided values at the exact crossing time.
     # (Rests at corners need no check: sdot = sddot = 0 there.)
-    inner = np.flatnonzero(((ps.aL != ps.aR).any(axis=1) | (ps.bL != ps.bR).any(axis=1)) & ~ps.stop)
     if inner.size:
         sd_b, sdd_b = _at_path_parameter(law, t_chk, s, ps.s[inner])
         for aa, bb in ((ps.aL[inner], ps.bL[inner]), (ps.aR[inner], ps.bR[inner])):

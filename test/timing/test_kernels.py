@@ -181,3 +181,45 @@ def test_topp_matches_numpy(name, path, cap):
             want = topp(ps, vmax, scale * amax, x_max)
         np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12 * want.max())
         assert got[0] == got[-1] == 0.0
+
+
+def test_piecewise_law_tables_match_numpy():
+    from geodesic_planner.timing.smoothing import build_piecewise_law
+    from geodesic_planner.timing.topp import topp
+    robot, planner, q_a, T_a, T_b = _ur5e_line_path()
+    poses = [T_a, T_b, T_a.copy()]
+    poses[2][:3, 3] += [0.05, 0.1, -0.05]
+    paths = [planner.plan(T_a, T_b, start_joints=q_a), planner.plan_through(poses, start_joints=q_a),
+             planner.plan_through(poses, start_joints=q_a, blend_radius=0.02),     # valleys at the blend
+             ZigZagPath([0.0, 0.3, 0.55, 1.0])]
+    pieces_seen, valleys_seen = set(), False
+    for path in paths:
+        fine = sample_path(path, 100).refined(2)
+        x = topp(fine, path.robot.max_velocity, path.robot.max_acceleration)
+        for smoothing in (0.05, 0.3):
+            got = build_piecewise_law(fine.s, x, smoothing)
+            with kernels.numpy_only():
+                want = build_piecewise_law(fine.s, x, smoothing)
+            pieces_seen.add(want.n_pieces)
+            tau, t_star = want.pieces[0], want.pieces[5]
+            valleys_seen |= bool(np.any(tau < 0.4 * smoothing * t_star))   # a kernel narrowed by a valley
+            assert got.key_step == want.key_step
+            for name in ('t_offsets', 'pieces', 'seg_key', 'seg', 'node_s', 'node_t'):
+                g, w = getattr(got, name), getattr(want, name)
+                assert g.shape == w.shape, name
+                np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-14, err_msg=name)
+    assert 1 in pieces_seen and max(pieces_seen) >= 3 and valleys_seen     # every branch was exercised
+
+
+@pytest.mark.parametrize('factor', [2, 3])
+def test_refined_samples_match_numpy(factor):
+    for path in (curved(), CornerPath([1.0, 0.5], [0.2, -1.0]), ZigZagPath([0.0, 0.3, 0.55, 1.0])):
+        ps = sample_path(path, 50)
+        got = ps.refined(factor)
+        with kernels.numpy_only():
+            want = ps.refined(factor)
+        for name in ('s', 'aL', 'aR', 'bL', 'bR', 'cL', 'cR', 'stop'):
+            g, w = getattr(got, name), getattr(want, name)
+            assert g.shape == w.shape, name
+            np.testing.assert_allclose(g, w, rtol=1e-13, atol=1e-14, err_msg=name)
+        assert got.s.size == factor * (ps.s.size - 1) + 1 and np.all(np.diff(got.s) > 0)
