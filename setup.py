@@ -19,7 +19,9 @@ setup(
     ],
     # The compiled kernels (plain C, loaded with ctypes; core/compiled.py). Optional: without a
     # compiler the build goes on and the library runs its numpy code, with the same results.
-    ext_modules=[Extension(PACKAGE + '.core._kernels', sources=[PACKAGE + '/core/_kernels.c'],
+    ext_modules=[Extension(PACKAGE + '.core._kernels', sources=[PACKAGE + '/core/_kernels.c',
+                                                               PACKAGE + '/core/_kernels_timing.c'],
+                           depends=[PACKAGE + '/core/_kernels.h'],
                            extra_compile_args=['-O2', '-fno-math-errno', '-ffp-contract=off'], optional=True)],
     python_requires='>=3.10',
     install_requires=['numpy>=1.24', 'scipy>=1.10', 'pyyaml>=6', 'pin>=3.0'],

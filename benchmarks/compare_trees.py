@@ -62,11 +62,12 @@ print(json.dumps(out))
 
 def build_kernels(tree: str) -> None:
     """Compile the tree's kernels next to their source when no built copy is there."""
-    for src in glob.glob(os.path.join(tree, 'geodesic_planner', '**', '_kernels.c'), recursive=True):
-        folder = os.path.dirname(src)
+    for main in glob.glob(os.path.join(tree, 'geodesic_planner', '**', '_kernels.c'), recursive=True):
+        folder = os.path.dirname(main)
         if not glob.glob(os.path.join(folder, '_kernels*.so')):
+            sources = sorted(glob.glob(os.path.join(folder, '_kernels*.c')))
             suffix = sysconfig.get_config_var('EXT_SUFFIX')
-            subprocess.run(['cc', *FLAGS, f'-I{sysconfig.get_paths()["include"]}', src, '-o',
+            subprocess.run(['cc', *FLAGS, f'-I{sysconfig.get_paths()["include"]}', *sources, '-o',
                             os.path.join(folder, '_kernels' + suffix)], check=True)
 
 

@@ -10,7 +10,7 @@
 # interface package geodesic_planner_interfaces (ament_cmake + rosidl, ~15 s) into the venv with
 # `pip install --no-build-isolation` (scikit-build-core; see geodesic_planner_interfaces/pyproject.toml):
 # its files land where the ROS wheels put theirs, so the venv's python imports it with no environment.
-# `pip install -e .` also compiles the C kernels (geodesic_planner/core/_kernels.c, about 1 s).
+# `pip install -e .` also compiles the C kernels (geodesic_planner/core/_kernels*.c, about 1 s).
 # A stamp file inside the venv records the sha256 of lock.txt, setup.py, pyproject.toml, the kernels' source and
 # the interface package's sources: when it matches, all of this is skipped (re-runs take well under a second).
 # pip's output goes to a log file; on failure its tail is printed and the script exits non-zero.
@@ -43,7 +43,8 @@ pick_python() {
 [ -f "$lock" ] || die "missing $lock"
 interfaces="$root/geodesic_planner_interfaces"
 stamp_inputs() {  # every file whose change needs a new set-up, in a fixed order
-    printf '%s\n' "$lock" "$root/setup.py" "$root/pyproject.toml" "$root/geodesic_planner/core/_kernels.c"
+    printf '%s\n' "$lock" "$root/setup.py" "$root/pyproject.toml" "$root/geodesic_planner/core/_kernels.c" \
+        "$root/geodesic_planner/core/_kernels_timing.c" "$root/geodesic_planner/core/_kernels.h"
     (cd "$interfaces" && find . -type f \( -name '*.msg' -o -name '*.srv' -o -name '*.txt' -o -name '*.xml' \
         -o -name '*.cmake' -o -name '*.toml' \) -not -path './build/*' | LC_ALL=C sort | sed "s|^\.|$interfaces|")
 }

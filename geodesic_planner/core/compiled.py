@@ -1,6 +1,6 @@
-"""The package's compiled kernels (``_kernels.c``), loaded with ctypes, and the switch to numpy.
+"""The package's compiled kernels (``_kernels.c``, ``_kernels_timing.c``), loaded with ctypes, and the switch to numpy.
 
-``_kernels.c`` is built by setup.py as an optional extension (``pip install -e .`` in the set-up
+They are built by setup.py as an optional extension (``pip install -e .`` in the set-up
 compiles it). It does, sample by sample, what numpy code of the library does on whole arrays:
 the serial chains' forward kinematics (:mod:`.kinematics`) and the piecewise polynomials of the
 paths' splines (:mod:`.polynomials`), here, and the time laws'

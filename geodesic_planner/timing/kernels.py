@@ -1,4 +1,4 @@
-"""Compiled kernels of the time laws' hot loops (in ``core/_kernels.c``, loaded by
+"""Compiled kernels of the time laws' hot loops (in ``core/_kernels_timing.c``, loaded by
 :mod:`geodesic_planner.core.compiled`), with the numpy code as the fallback.
 
 They do sample by sample what the numpy code of :mod:`.smoothing`, :mod:`.box_filter`,
@@ -178,7 +178,8 @@ def topp(rows: Pinned, vmax: np.ndarray, amax: np.ndarray, x_max: np.ndarray | N
 
 
 def backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> np.ndarray:
-    """:func:`.topp._backward_pass` by its exact recursion: hi (n + 1,)."""
+    """The backward pass of :func:`topp` alone (the exact recursion of :func:`.topp._backward_pass`),
+    for checking it against a plain loop: hi (n + 1,)."""
     assert _LIB is not None
     A, B, static = _f64(A), _f64(B), _f64(static)
     n, R = A.shape
@@ -188,7 +189,8 @@ def backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> np.ndarra
 
 
 def forward_pass(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """:func:`.topp._forward_pass` by its exact recursion: x (n + 1,)."""
+    """The forward pass of :func:`topp` alone (the exact recursion of :func:`.topp._forward_pass`),
+    for checking it against a plain loop: x (n + 1,)."""
     assert _LIB is not None
     alpha, d, two_h, hi = _f64(alpha), _f64(d), _f64(two_h), _f64(hi)
     n, R = alpha.shape

@@ -138,8 +138,6 @@ def _backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> np.ndarr
     In closed form (:func:`_backward_closed`) when it is accepted, else by a loop over all rows
     on plain floats (the exact recursion).
     """
-    if kernels.active():
-        return kernels.backward_pass(A, B, static)
     closed = _backward_closed(A, B, static)
     if closed is not None:
         return closed
@@ -159,8 +157,6 @@ def _forward_pass(alpha: np.ndarray, d: np.ndarray, two_h: np.ndarray, hi_np: np
     ``u_k = min((hi_{k+1} - x_k) / (2 h_k), min_j alpha_kj x_k + d_kj)``; in closed form
     (:func:`_forward_closed`) when it is accepted, else by a loop over all rows.
     """
-    if kernels.active():
-        return kernels.forward_pass(alpha, d, two_h, hi_np)
     closed = _forward_closed(alpha, d, two_h, hi_np)
     if closed is not None:
         return closed

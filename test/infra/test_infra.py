@@ -311,7 +311,8 @@ def test_setup_env_stamp_skips_pip_and_failures_are_visible(tmp_path: Path) -> N
                      key=lambda p: str(p.relative_to(interfaces)).encode())
     want = hashlib.sha256(b''.join(p.read_bytes() for p in [
         ROOT / 'requirements' / 'lock.txt', ROOT / 'setup.py', ROOT / 'pyproject.toml',
-        ROOT / 'geodesic_planner' / 'core' / '_kernels.c', *sources])).hexdigest()
+        *(ROOT / 'geodesic_planner' / 'core' / name for name in ('_kernels.c', '_kernels_timing.c', '_kernels.h')),
+        *sources])).hexdigest()
     env = {**os.environ, 'GP_VENV': str(venv)}
 
     (venv / '.geodesic_planner_stamp').write_text(want + '\n')

@@ -1,0 +1,382 @@
+/* The time laws' compiled kernels (see _kernels.c for the list and the conventions). */
+#include "_kernels.h"
+
+/* The smoothed law at times t (m,). pieces (6, L): tau, duration, s_start, span, s_end, T*;
+ * seg (6, S): start, s0, v0, u, S1, S2 of each s* segment, searched by seg_key (S,).
+ * Outputs s, sd, sdd and (when sddd is not NULL) sddd, each (m,). */
+void gp_piecewise_evaluate(idx_t m, const double *t, idx_t L, const double *offs, const double *pieces,
+                           double key_step, idx_t S, const double *seg_key, const double *seg,
+                           double *s_out, double *sd_out, double *sdd_out, double *sddd_out)
+{
+    const double duration = offs[L];
+    const double snap = 1e-12 * fmax(1.0, duration);
+    idx_t hints[3] = {0, 0, 0};
+    for (idx_t i = 0; i < m; ++i) {
+        double ti = t[i], local, key_off = 0.0;
+        idx_t p = 0;
+        if (L == 1) {
+            local = clampd(ti, 0.0, duration);
+        } else {
+            idx_t j = clampi(lower(offs, L + 1, ti), 1, L);
+            double near = fabs(ti - offs[j - 1]) <= fabs(ti - offs[j]) ? offs[j - 1] : offs[j];
+            if (fabs(ti - near) <= snap) ti = near;
+            p = clampi(upper(offs, L + 1, ti) - 1, 0, L - 1);
+            double dur = pieces[L + p];
+            local = ti >= offs[p + 1] ? dur : ti - offs[p];
+            local = clampd(local, 0.0, dur);
+            key_off = (double)p * key_step;
+        }
+        const double tau = pieces[p], dur = pieces[L + p], s_start = pieces[2 * L + p];
+        const double span = pieces[3 * L + p], s_end = pieces[4 * L + p];
+        double w2[3], w1[3], w0[3], w3[3];
+        double q = local;
+        for (int k = 0; k < 3; ++k) {
+            if (k == 1) q = local - tau;
+            else if (k == 2) q = q - tau;
+            double key = L > 1 ? q + key_off : q;
+            idx_t g = upper_hint(seg_key, S, key, &hints[k]) - 1;
+            if (g < 0) g = 0;
+            const double start = seg[g], s0 = seg[S + g], v0 = seg[2 * S + g], u = seg[3 * S + g];
+            const double S1 = seg[4 * S + g], S2 = seg[5 * S + g];
+            const double r = q - start, ru = r * u;
+            double a = ru / 24.0;
+            a += v0 / 6.0; a *= r; a += 0.5 * s0; a *= r; a += S1; a *= r; a += S2;
+            w2[k] = a;
+            double b = ru / 6.0;
+            b += 0.5 * v0; b *= r; b += s0; b *= r; b += S1;
+            w1[k] = b;
+            double c = 0.5 * ru;
+            c += v0; c *= r; c += s0;
+            w0[k] = c;
+            w3[k] = ru + v0;
+        }
+        const double inv = 1.0 / (tau * tau);
+#define SECOND_DIFFERENCE(y) (((y[0] - 2.0 * y[1]) + y[2]) * inv)
+        double s = s_start + clampd(SECOND_DIFFERENCE(w2), 0.0, span);
+        double sd = nmax(SECOND_DIFFERENCE(w1), 0.0);
+        double sdd = SECOND_DIFFERENCE(w0);
+        double sddd = SECOND_DIFFERENCE(w3);
+#undef SECOND_DIFFERENCE
+        if (local >= dur) { s = s_end; sd = sdd = sddd = 0.0; }
+        else if (local <= 0.0) { s = s_start; sd = sdd = sddd = 0.0; }
+        s_out[i] = s;
+        sd_out[i] = sd;
+        sdd_out[i] = sdd;
+        if (sddd_out) sddd_out[i] = sddd;
+    }
+}
+
+/* s* of one piece at local time r: integral S1, s* - s_start, sdot*, sddot* (box_filter.StarPiece.at).
+ * The piece's steps are t0, s0, v0, u, S1 (each n entries); t_star, span, S1_end its end. */
+static void star_at(double r, idx_t n, const double *t0, const double *s0, const double *v0, const double *u,
+                    const double *S1, double t_star, double span, double S1_end, idx_t *hint, double out[4])
+{
+    idx_t k = clampi(upper_hint(t0, n, r, hint) - 1, 0, n - 1);
+    double d = r - t0[k];
+    double a = s0[k], v = v0[k], uk = u[k];
+    double I = S1[k] + d * (a + d * (0.5 * v + d * uk / 6.0));
+    double s = a + d * (v + 0.5 * uk * d);
+    double vel = v + uk * d;
+    if (r <= 0.0) { out[0] = 0.0; out[1] = 0.0; out[2] = 0.0; out[3] = 0.0; return; }
+    if (r >= t_star) { out[0] = S1_end + span * (r - t_star); out[1] = span; out[2] = 0.0; out[3] = 0.0; return; }
+    out[0] = I; out[1] = s; out[2] = vel; out[3] = uk;
+}
+
+/* The box-filtered law at times t (m,). Pieces: L of them, piece i's steps at first[i] ..
+ * first[i + 1] - 1 of the step tables t0, s0, v0, u, S1; ends (4, L): t_star, span, S1_end, s_start;
+ * width (L,), offs (L + 1,). Outputs as gp_piecewise_evaluate. */
+void gp_box_evaluate(idx_t m, const double *t, idx_t L, const double *offs, const double *width,
+                     const double *ends, const idx_t *first, const double *t0, const double *s0,
+                     const double *v0, const double *u, const double *S1,
+                     double *s_out, double *sd_out, double *sdd_out, double *sddd_out)
+{
+    const double duration = offs[L];
+    const double snap = 1e-12 * fmax(1.0, duration);
+    idx_t hints[2] = {0, 0}, last_piece = -1;
+    for (idx_t i = 0; i < m; ++i) {
+        double ti = clampd(t[i], 0.0, duration);
+        idx_t p = clampi(upper(offs, L + 1, ti) - 1, 0, L - 1);
+        const double w = width[p], t_star = ends[p], span = ends[L + p], S1_end = ends[2 * L + p];
+        const double s_start = ends[3 * L + p];
+        const double dur = t_star + w;
+        double r = clampd(ti - offs[p], 0.0, dur);
+        if (fabs(r - dur) <= snap) r = dur;
+        const idx_t f = first[p], n = first[p + 1] - first[p];
+        if (p != last_piece) { hints[0] = hints[1] = 0; last_piece = p; }
+        double A[4], B[4];
+        star_at(r, n, t0 + f, s0 + f, v0 + f, u + f, S1 + f, t_star, span, S1_end, &hints[0], A);
+        star_at(r - w, n, t0 + f, s0 + f, v0 + f, u + f, S1 + f, t_star, span, S1_end, &hints[1], B);
+        double s = clampd((A[0] - B[0]) / w, 0.0, span);
+        double sd = nmax((A[1] - B[1]) / w, 0.0);
+        double sdd = (A[2] - B[2]) / w;
+        double sddd = (A[3] - B[3]) / w;
+        if (r <= 0.0 || r >= dur) { s = 0.0; sd = sdd = sddd = 0.0; }
+        s_out[i] = s_start + (r >= dur ? span : s);
+        sd_out[i] = sd;
+        sdd_out[i] = sdd;
+        if (sddd_out) sddd_out[i] = sddd;
+    }
+}
+
+/* smoothing.build_piecewise_law: the optimal profile x (n + 1,) on nodes s (n + 1,), split at its
+ * rests (indices rests (L + 1,), x <= 0 there) into L rest-to-rest pieces, each smoothed by a kernel
+ * of half-width tau. K = rests[L] - rests[0] steps. Outputs: pieces (6, L) (tau, duration, s_start,
+ * span, s_end, T*), offsets (L + 1,), seg (6, K + 2 L) and seg_key (K + 2 L,), node_s and node_t
+ * (K + L,), key_step (1,). Same formulas and summation order as the numpy code; valley_depth is
+ * smoothing.VALLEY_DEPTH. node_t serves as scratch for each piece's running maxima from the right
+ * before it is filled. */
+void gp_build_piecewise(const double *s, const double *x, idx_t L, const idx_t *rests, double smoothing,
+                        double valley_depth, double *pieces, double *offs, double *seg, double *seg_key, double *node_s,
+                        double *node_t, double *key_step_out)
+{
+    const idx_t K = rests[L] - rests[0], S = K + 2 * L;
+    for (idx_t i = 0; i < 6 * S; ++i) seg[i] = 0.0;
+    double dur_max = 0.0;
+    offs[0] = 0.0;
+    for (idx_t p = 0; p < L; ++p) {
+        const idx_t a = rests[p], b = rests[p + 1];
+        const double start_s = s[a];
+        /* deep speed valleys inside the piece (smoothing._valleys) */
+        double *right = node_t, left = -INFINITY, valleys = 0.0;
+        right[b - a] = sqrt(nmax(x[b], 0.0));
+        for (idx_t i = b - 1; i >= a; --i) right[i - a] = nmax(right[i - a + 1], sqrt(nmax(x[i], 0.0)));
+        int prev_deep = 0;
+        for (idx_t i = a; i <= b; ++i) {
+            const double w = sqrt(nmax(x[i], 0.0));
+            left = nmax(left, w);
+            const int deep = w < valley_depth * nmin(left, right[i - a]);
+            if (i > a && deep && !prev_deep) valleys += 1.0;
+            prev_deep = deep;
+        }
+        /* the piece's s* steps: running sums of time and of the first and second integrals */
+        double t_acc = 0.0, S1_acc = 0.0, S2_acc = 0.0, rel1 = 0.0;
+        for (idx_t k = a; k < b; ++k) {
+            const double rel0 = s[k] - start_s;
+            rel1 = s[k + 1] - start_s;
+            const double dl = rel1 - rel0, v0 = sqrt(x[k]), v1 = sqrt(x[k + 1]);
+            const double dt = 2.0 * dl / (v0 + v1), u = (x[k + 1] - x[k]) / (2.0 * dl);
+            const double dt2 = dt * dt, dt3 = pow(dt, 3.0), dt4 = pow(dt, 4.0);
+            const double t0 = t_acc, S1s = S1_acc, S2s = S2_acc;
+            t_acc += dt;
+            S1_acc += rel0 * dt + v0 * dt2 / 2.0 + u * dt3 / 6.0;
+            S2_acc += S1s * dt + rel0 * dt2 / 2.0 + v0 * dt3 / 6.0 + u * dt4 / 24.0;
+            const idx_t j = k - rests[0] + 2 * p + 1;            /* the step's segment */
+            seg[j] = t0; seg[S + j] = rel0; seg[2 * S + j] = v0; seg[3 * S + j] = u;
+            seg[4 * S + j] = S1s; seg[5 * S + j] = S2s;
+            node_s[k - rests[0] + p] = start_s + rel0;
+        }
+        const double t_star = t_acc, tau = 0.5 * smoothing * t_star / (1.0 + valleys);
+        const double dur = t_star + 2.0 * tau;
+        dur_max = nmax(dur_max, dur);
+        offs[p + 1] = offs[p] + dur;
+        pieces[p] = tau; pieces[L + p] = dur; pieces[2 * L + p] = start_s; pieces[3 * L + p] = rel1;
+        pieces[4 * L + p] = s[b]; pieces[5 * L + p] = t_star;
+        const idx_t after = b - rests[0] - 1 + 2 * p + 2;       /* the rest after the piece */
+        seg[after] = t_star; seg[S + after] = rel1; seg[4 * S + after] = S1_acc; seg[5 * S + after] = S2_acc;
+        node_s[b - rests[0] + p] = start_s + rel1;
+    }
+    const double key_step = ldexp(1.0, (int)ceil(log2(4.0 * nmax(dur_max, 1e-300))));
+    *key_step_out = key_step;
+    for (idx_t p = 0; p < L; ++p) {
+        const idx_t a = rests[p], b = rests[p + 1];
+        const double base = offs[p] + pieces[p];                 /* s* delayed by tau */
+        for (idx_t k = a; k < b; ++k) {
+            const idx_t j = k - rests[0] + 2 * p + 1;
+            seg_key[j] = L > 1 ? seg[j] + (double)p * key_step : seg[j];
+            node_t[k - rests[0] + p] = base + seg[j];
+        }
+        const idx_t after = b - rests[0] - 1 + 2 * p + 2, before = after - (b - a) - 1;
+        seg_key[after] = L > 1 ? seg[after] + (double)p * key_step : seg[after];
+        seg_key[before] = ((double)p - 0.5) * key_step;
+        node_t[b - rests[0] + p] = offs[p] + pieces[p] + pieces[5 * L + p];
+    }
+    seg_key[0] = -INFINITY;
+}
+
+/* sampling.PathSamples.refined: the n steps of nodes s (n + 1,) each split into `factor` equal
+ * parts, q' and q'' at the new nodes cubic Hermite (coef (8, dof, n) as in gp_hermite_ratios), the
+ * one-sided values aL, aR, bL, bR (n + 1, dof) kept at the old nodes. Outputs s_out (m,) and
+ * aL_out, aR_out, bL_out, bR_out (m, dof), m = n factor + 1. */
+void gp_refine(idx_t n, idx_t dof, idx_t factor, const double *s, const double *aL, const double *aR,
+               const double *bL, const double *bR, const double *coef, double *s_out, double *aL_out,
+               double *aR_out, double *bL_out, double *bR_out)
+{
+    const idx_t plane = dof * n;
+    for (idx_t k = 0; k <= n; ++k) {
+        const idx_t o = k * factor;
+        s_out[o] = s[k];
+        for (idx_t j = 0; j < dof; ++j) {
+            aL_out[o * dof + j] = aL[k * dof + j]; aR_out[o * dof + j] = aR[k * dof + j];
+            bL_out[o * dof + j] = bL[k * dof + j]; bR_out[o * dof + j] = bR[k * dof + j];
+        }
+        if (k == n) break;
+        const double h = s[k + 1] - s[k];
+        for (idx_t i = 1; i < factor; ++i) {
+            const double extra = s[k] + h * ((double)i / (double)factor), r = extra - s[k];
+            s_out[o + i] = extra;
+            for (idx_t j = 0; j < dof; ++j) {
+                const double *c = coef + j * n + k;
+                double a = c[3 * plane];
+                a *= r; a += c[2 * plane]; a *= r; a += c[plane]; a *= r; a += c[0];
+                double b = c[7 * plane];
+                b *= r; b += c[6 * plane]; b *= r; b += c[5 * plane]; b *= r; b += c[4 * plane];
+                const idx_t at = (o + i) * dof + j;
+                aL_out[at] = aR_out[at] = a;
+                bL_out[at] = bR_out[at] = b;
+            }
+        }
+    }
+}
+
+/* Per sample (s, sd, sdd[, sddd]) the largest ratios over the joints of |q' sd| / vmax,
+ * |q' sdd + q'' sd^2| / amax and (when coef3 is not NULL) |q' sddd + 3 q'' sd sdd + q''' sd^3| / jmax,
+ * each taken as a product with the limit's reciprocal (inv_vmax ...: a division per joint and
+ * sample cost a third of the kernel; the ratios differ from numpy's quotients by at most 1 ulp),
+ * with q', q'' cubic Hermite on the steps of nodes (n + 1,): coef (8, dof, n) as
+ * sampling.PathSamples.coef, coef3 (3, dof, n) as its coef3. */
+void gp_hermite_ratios(idx_t m, const double *s, const double *sd, const double *sdd, const double *sddd,
+                       idx_t n, const double *nodes, idx_t dof, const double *coef, const double *coef3,
+                       const double *inv_vmax, const double *inv_amax, const double *inv_jmax,
+                       double *rv_out, double *ra_out, double *rj_out)
+{
+    const idx_t plane = dof * n;
+    idx_t hint = 0;
+    for (idx_t i = 0; i < m; ++i) {
+        const idx_t k = clampi(upper_hint(nodes, n + 1, s[i], &hint) - 1, 0, n - 1);
+        const double r = s[i] - nodes[k], v = sd[i], acc = sdd[i], v2 = v * v;
+        double rv = -INFINITY, ra = -INFINITY, rj = -INFINITY;
+        for (idx_t j = 0; j < dof; ++j) {
+            const double *c = coef + j * n + k;
+            double a = c[3 * plane];
+            a *= r; a += c[2 * plane]; a *= r; a += c[plane]; a *= r; a += c[0];
+            double b = c[7 * plane];
+            b *= r; b += c[6 * plane]; b *= r; b += c[5 * plane]; b *= r; b += c[4 * plane];
+            double x = fabs(a * v) * inv_vmax[j];
+            if (x > rv || isnan(x)) rv = x;
+            x = fabs(a * acc + b * v2) * inv_amax[j];
+            if (x > ra || isnan(x)) ra = x;
+            if (coef3) {
+                const double *c3 = coef3 + j * n + k;
+                double q3 = c3[2 * plane];
+                q3 *= r; q3 += c3[plane]; q3 *= r; q3 += c3[0];
+                x = fabs(a * sddd[i] + 3.0 * b * (v * acc) + q3 * (v2 * v)) * inv_jmax[j];
+                if (x > rj || isnan(x)) rj = x;
+            }
+        }
+        rv_out[i] = rv;
+        ra_out[i] = ra;
+        if (coef3) rj_out[i] = rj;
+    }
+}
+
+/* hi (n + 1,): hi_n = 0, hi_k = min(static_k, min_j A_kj hi_{k+1} + B_kj); A, B (n, R). */
+void gp_backward_pass(idx_t n, idx_t R, const double *A, const double *B, const double *st, double *hi)
+{
+    double h = 0.0;
+    hi[n] = 0.0;
+    for (idx_t k = n - 1; k >= 0; --k) {
+        double best = st[k];
+        const double *a = A + k * R, *b = B + k * R;
+        for (idx_t j = 0; j < R; ++j) {
+            double v = a[j] * h + b[j];
+            if (v < best) best = v;
+        }
+        h = best;
+        hi[k] = h;
+    }
+}
+
+/* x (n + 1,): x_0 = 0, u_k = min((hi_{k+1} - x_k) / (2 h_k), min_j alpha_kj x_k + d_kj),
+ * x_{k+1} = min(max(x_k + 2 h_k u_k, 0), hi_{k+1}); alpha, d (n, R), two_h (n,), hi (n + 1,). */
+void gp_forward_pass(idx_t n, idx_t R, const double *alpha, const double *d, const double *two_h,
+                     const double *hi, double *x)
+{
+    double xk = 0.0;
+    x[0] = 0.0;
+    for (idx_t k = 0; k < n; ++k) {
+        double u = (hi[k + 1] - xk) / two_h[k];
+        const double *al = alpha + k * R, *dk = d + k * R;
+        for (idx_t j = 0; j < R; ++j) {
+            double v = al[j] * xk + dk[j];
+            if (v < u) u = v;
+        }
+        xk = nmin(nmax(xk + two_h[k] * u, 0.0), hi[k + 1]);
+        x[k + 1] = xk;
+    }
+}
+
+/* The constraint rows of topp.topp on the nodes s (n + 1,) with one-sided q', q'' (aL, aR, bL, bR,
+ * each (n + 1, dof)), limits vmax, amax (dof,), x_max (n + 1,) or NULL, stop (n + 1,) (nonzero: a
+ * corner). Per step k, the R = 2 dof acceleration rows |ra u + rb x_k| <= rl become
+ * alpha x + c <= u <= alpha x + d; outputs alpha, d, A, B (n, R), the static bound on x_k (n,)
+ * and 2 h_k (n,), with the same formulas, masks and order of operations as topp.topp. */
+void gp_topp_rows(idx_t n, idx_t dof, const double *s, const double *aL, const double *aR, const double *bL,
+                  const double *bR, const double *vmax, const double *amax, const double *x_max,
+                  const int64_t *stop, double *alpha, double *d, double *A, double *B, double *st, double *two_h)
+{
+    const idx_t R = 2 * dof;
+    double top_v = 0.0, top_a = 0.0;
+    for (idx_t i = 0; i < (n + 1) * dof; ++i) {
+        double v = nmax(fabs(aL[i]), fabs(aR[i]));
+        if (v > top_v || isnan(v)) top_v = v;
+    }
+    for (idx_t k = 0; k < n; ++k) {
+        const double dl = s[k + 1] - s[k];
+        for (idx_t j = 0; j < dof; ++j) {
+            double a0 = fabs(aR[k * dof + j]);
+            double a1 = fabs(aL[(k + 1) * dof + j] + 2.0 * dl * bL[(k + 1) * dof + j]);
+            if (a0 > top_a || isnan(a0)) top_a = a0;
+            if (a1 > top_a || isnan(a1)) top_a = a1;
+        }
+    }
+    const double eps_v = 1e-12 * fmax(top_v, 1e-300), eps_a = 1e-12 * fmax(top_a, 1e-300);
+    for (idx_t k = 0; k < n; ++k) {
+        /* velocity bound at node k: min over joints of (vmax / |q'|)^2, capped by x_max */
+        double xv = INFINITY;
+        for (idx_t j = 0; j < dof; ++j) {
+            double a = nmax(fabs(aL[k * dof + j]), fabs(aR[k * dof + j]));
+            if (a > eps_v) {
+                double r = vmax[j] / a;
+                r = r * r;
+                if (r < xv) xv = r;
+            }
+        }
+        if (x_max) xv = nmin(xv, x_max[k]);
+        const double dl = s[k + 1] - s[k];
+        two_h[k] = 2.0 * dl;
+        double *al = alpha + k * R, *dk = d + k * R, *Ak = A + k * R, *Bk = B + k * R;
+        double xz = INFINITY, xl = INFINITY, xp = INFINITY;
+        for (idx_t j = 0; j < R; ++j) {
+            const idx_t jj = j % dof;
+            double ra, rb;
+            if (j < dof) { ra = aR[k * dof + jj]; rb = bR[k * dof + jj]; }
+            else { ra = aL[(k + 1) * dof + jj] + 2.0 * dl * bL[(k + 1) * dof + jj]; rb = bL[(k + 1) * dof + jj]; }
+            const double rl = amax[jj], absa = fabs(ra);
+            const int moving = absa > eps_a;
+            double c;
+            if (moving) {
+                al[j] = -rb / ra;
+                dk[j] = rl / absa;
+                c = -rl / absa;
+            } else {
+                double absb = fabs(rb);
+                if (absb > 0) { double z = rl / absb; if (z < xz) xz = z; }
+                al[j] = 0.0;
+                dk[j] = INFINITY;
+                c = -INFINITY;
+            }
+            const double coef = -1.0 / (2.0 * dl) - al[j];
+            if (moving && coef > 0) { double z = dk[j] / coef; if (z < xl) xl = z; }
+            const double den = 1.0 + 2.0 * dl * al[j];
+            if (moving && den > 0) { Ak[j] = 1.0 / den; Bk[j] = -2.0 * dl * c / den; }
+            else { Ak[j] = 0.0; Bk[j] = INFINITY; }
+        }
+        for (idx_t i = 0; i < R; ++i)
+            for (idx_t j = i + 1; j < R; ++j) {
+                double z = (dk[i] + dk[j]) / fabs(al[i] - al[j]);
+                if (z < xp || isnan(z)) xp = nmin(xp, z);
+            }
+        double v = nmin(nmin(nmin(xv, xz), nmin(xp, xl)), 1e12);
+        st[k] = stop[k] ? 0.0 : nmax(v, 0.0);
+    }
+}
