@@ -1,11 +1,12 @@
 """The package's compiled kernels (``_kernels.c``, ``_kernels_timing.c``), loaded with ctypes, and the switch to numpy.
 
-They are built by setup.py as an optional extension (``pip install -e .`` in the set-up
-compiles it). It does, sample by sample, what numpy code of the library does on whole arrays:
-the serial chains' forward kinematics (:mod:`.kinematics`) and the piecewise polynomials of the
-paths' splines (:mod:`.polynomials`), here, and the time laws'
-hot loops (:mod:`geodesic_planner.timing.kernels`). Callers ask :func:`active` and otherwise run
-their numpy code, which stays the reference: ``test/timing/test_kernels.py`` compares the two.
+setup.py builds them as one optional extension (``pip install -e .`` in the set-up compiles it).
+They do, sample by sample, what numpy code of the library does on whole arrays: the serial
+chains' forward kinematics (:mod:`.kinematics`) and the piecewise polynomials of the paths'
+splines (:mod:`.polynomials`), wrapped here, and the time laws' hot loops, wrapped in
+:mod:`geodesic_planner.timing.kernels`. Callers ask :func:`active` and otherwise run their numpy
+code, which stays the reference: ``test/core/test_compiled.py`` and ``test/timing/test_kernels.py``
+compare the two.
 
 The kernels are off when the extension was not built (no C compiler at set-up), when the
 environment sets ``GP_KERNELS=numpy``, or inside :func:`numpy_only`; :data:`REASON` says why.
