@@ -6,6 +6,7 @@
  *
  *   gp_frames              core.kinematics.Chain frames and generators (forward kinematics)
  *   gp_polynomials         core.polynomials.evaluate_polynomials (the paths' quintic splines)
+ *   gp_jacobian_rate       core.redundant.RedundantEquations.rate (dJ[u], the redundant solver)
  *   gp_build_piecewise     smoothing.build_piecewise_law (the smoothed law's tables)
  *   gp_piecewise_evaluate  smoothing.PiecewiseLaw.evaluate (the smoothed law s(t) and derivatives)
  *   gp_box_evaluate        box_filter.BoxLaw.evaluate (the box-filtered law of the jerk law)
@@ -98,6 +99,43 @@ void gp_polynomials(idx_t m, const double *x, idx_t N, const double *t, const do
             if (order >= 1) o[plane] = vel;
             if (order >= 2) o[2 * plane] = acc;
             if (order >= 3) o[3 * plane] = jerk;
+        }
+    }
+}
+
+/* redundant.RedundantEquations.rate: the directional derivative dJ[u] (6, dof) of the geometric
+ * Jacobian, for B batch elements each with twist matrices X (dof, 4, 4) (kinematics generators),
+ * tool pose T (4, 4) and direction u (dof,); out (B, 6, dof), rows [dv; dw]. Joint k's twist turns
+ * with the joints before it: dw_k = a x w_k, dv_k = a x v_k - w_k x b + w_k x dp + dw_k x p, with
+ * a, b the sums of w_j u_j, v_j u_j over j < k, p the tool position and dp = A x p + V (A, V the
+ * sums over all joints). */
+void gp_jacobian_rate(idx_t B, idx_t dof, const double *X, const double *T, const double *u, double *out)
+{
+    for (idx_t e = 0; e < B; ++e) {
+        const double *Xe = X + e * dof * 16, *Te = T + e * 16, *ue = u + e * dof;
+        double *o = out + e * 6 * dof;
+        const double p[3] = {Te[3], Te[7], Te[11]};
+        double A[3] = {0.0, 0.0, 0.0}, V[3] = {0.0, 0.0, 0.0};
+        for (idx_t k = 0; k < dof; ++k) {
+            const double *x = Xe + 16 * k;
+            A[0] += x[9] * ue[k]; A[1] += x[2] * ue[k]; A[2] += x[4] * ue[k];
+            V[0] += x[3] * ue[k]; V[1] += x[7] * ue[k]; V[2] += x[11] * ue[k];
+        }
+        const double dp[3] = {A[1] * p[2] - A[2] * p[1] + V[0], A[2] * p[0] - A[0] * p[2] + V[1],
+                              A[0] * p[1] - A[1] * p[0] + V[2]};
+        double a[3] = {0.0, 0.0, 0.0}, b[3] = {0.0, 0.0, 0.0};
+        for (idx_t k = 0; k < dof; ++k) {
+            const double *x = Xe + 16 * k;
+            const double w[3] = {x[9], x[2], x[4]}, v[3] = {x[3], x[7], x[11]};
+            const double dw[3] = {a[1] * w[2] - a[2] * w[1], a[2] * w[0] - a[0] * w[2], a[0] * w[1] - a[1] * w[0]};
+            for (int i = 0; i < 3; ++i) {
+                const int i1 = (i + 1) % 3, i2 = (i + 2) % 3;
+                const double dv = (a[i1] * v[i2] - a[i2] * v[i1]) - (w[i1] * b[i2] - w[i2] * b[i1])
+                                  + (w[i1] * dp[i2] - w[i2] * dp[i1]) + (dw[i1] * p[i2] - dw[i2] * p[i1]);
+                o[i * dof + k] = dv;
+                o[(3 + i) * dof + k] = dw[i];
+            }
+            for (int i = 0; i < 3; ++i) { a[i] += w[i] * ue[k]; b[i] += v[i] * ue[k]; }
         }
     }
 }

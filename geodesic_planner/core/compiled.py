@@ -21,7 +21,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['LIB', 'REASON', 'Pinned', 'active', 'f64', 'frames', 'generators', 'numpy_only', 'polynomials']
+__all__ = ['LIB', 'REASON', 'Pinned', 'active', 'f64', 'frames', 'generators', 'jacobian_rate', 'numpy_only',
+           'polynomials']
 
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
@@ -31,6 +32,7 @@ _D = ctypes.c_double
 SIGNATURES: dict[str, list[Any]] = {
     'gp_frames': [_I, _I, _P, _P, _P, _P, _P, _P],
     'gp_polynomials': [_I, _P, _I, _P, _P, _I, _I, _P],
+    'gp_jacobian_rate': [_I, _I, _P, _P, _P, _P],
     'gp_build_piecewise': [_P, _P, _I, _P, _D, _D, _P, _P, _P, _P, _P, _P, _P],
     'gp_refine': [_I, _I, _I] + [_P] * 11,
     'gp_piecewise_evaluate': [_I, _P, _I, _P, _P, _D, _I, _P, _P, _P, _P, _P, _P],
@@ -118,6 +120,20 @@ def generators(chain: Pinned, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`.kinematics.Chain.generators` compiled (``chain`` as :func:`frames`): the spatial
     twist matrices (N, dof, 4, 4) and the tool poses (N, 4, 4)."""
     return _chain(chain, q, False)
+
+
+def jacobian_rate(X: np.ndarray, T: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """:meth:`.redundant.RedundantEquations.rate` compiled: X (..., dof, 4, 4), T (..., 4, 4) and u
+    (..., dof) broadcast together; dJ[u] (..., 6, dof)."""
+    assert LIB is not None
+    dof = X.shape[-3]
+    batch = np.broadcast_shapes(X.shape[:-3], T.shape[:-2], u.shape[:-1])
+    Xb, Tb, ub = (f64(np.broadcast_to(a, batch + tail)) for a, tail in
+                  ((X, (dof, 4, 4)), (T, (4, 4)), (u, (dof,))))
+    out = np.empty(batch + (6, dof))
+    LIB.gp_jacobian_rate(int(np.prod(batch, dtype=np.int64)), dof, Xb.ctypes.data, Tb.ctypes.data,
+                         ub.ctypes.data, out.ctypes.data)
+    return out
 
 
 def polynomials(tables: Pinned, times: np.ndarray, order: int) -> tuple[np.ndarray, ...]:

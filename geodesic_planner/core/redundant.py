@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import compiled
 from .kinematics import Chain, taylor3
 from .metric import Metric
 from .transforms import line_slerp, so3_log
@@ -82,8 +83,10 @@ class RedundantEquations:
         turns with the joints before it: ``dξ_k = [Σ_{j<k} ξ_j u_j, ξ_k]`` (Lie bracket
         ``[(a, b), (ω, v)] = (a × ω, a × v − ω × b)``), and J's velocity row is ``ω_k × p + v_k``
         with ``dp = J_v u``. X (..., dof, 4, 4) and T (..., 4, 4) broadcast with u (..., dof)
-        -> (..., 6, dof).
+        -> (..., 6, dof). Compiled (:mod:`.compiled`) when the kernels are on.
         """
+        if compiled.active():
+            return compiled.jacobian_rate(X, T, u)
         Wm = X * u[..., None, None]
         C = np.cumsum(Wm, axis=-3)
         P = (C - Wm)[..., :3, :]                               # [hat(Σ_{j<k} ω_j u_j), Σ_{j<k} v_j u_j]

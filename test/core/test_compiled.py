@@ -74,3 +74,22 @@ def test_kinematics_match_numpy(name):
         dq[k] = h
         fd = (robot.fk(q + dq) - robot.fk(q - dq)) / (2 * h)
         np.testing.assert_allclose(X[:, k] @ T, fd, atol=1e-7)
+
+
+def test_jacobian_rate_matches_numpy_and_finite_differences():
+    from geodesic_planner import load_robot
+    from geodesic_planner.core.redundant import RedundantEquations
+    robot = load_robot('panda')
+    rng = np.random.default_rng(9)
+    q = robot.home + rng.normal(0.0, 0.3, (20, robot.dof))
+    u = rng.normal(size=(20, 3, robot.dof))
+    X, T = robot.generators(q)
+    got = RedundantEquations.rate(X[:, None], T[:, None], u)      # broadcast as the Newton step does
+    with compiled.numpy_only():
+        want = RedundantEquations.rate(X[:, None], T[:, None], u)
+    assert got.shape == want.shape == (20, 3, 6, robot.dof)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+    # an independent oracle: the derivative of the Jacobian along u
+    h = 1e-6
+    fd = (robot.jacobian(q[:, None] + h * u) - robot.jacobian(q[:, None] - h * u)) / (2 * h)
+    np.testing.assert_allclose(got, fd, atol=1e-6)
