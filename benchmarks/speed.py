@@ -340,7 +340,8 @@ def main(argv: list[str] | None = None) -> int:
     load = os.getloadavg()
     head = [f'Machine: {machine()}',
             f'Load average (1 / 5 / 15 min): {load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f}',
-            f'Repeats per timing: {args.repeats} (run.measure: median and p90 wall clock after warm-up); '
+            f'Repeats per timing: {args.repeats} (measure_fresh: once per request never planned before, after one '
+            'warm-up call; median and p90 wall clock); '
             'ratio = measured median / reference median.']
     print('\n'.join(head), flush=True)
     rows = planner_rows(args.repeats)
