@@ -7,6 +7,7 @@
  *   gp_frames              core.kinematics.Chain frames and generators (forward kinematics)
  *   gp_polynomials         core.polynomials.evaluate_polynomials (the paths' quintic splines)
  *   gp_jacobian_rate       core.redundant.RedundantEquations.rate (dJ[u], the redundant solver)
+ *   gp_geodesic_acceleration  core.geodesic.GeodesicEquations.acceleration (the geodesic equations)
  *   gp_build_piecewise     smoothing.build_piecewise_law (the smoothed law's tables)
  *   gp_piecewise_evaluate  smoothing.PiecewiseLaw.evaluate (the smoothed law s(t) and derivatives)
  *   gp_box_evaluate        box_filter.BoxLaw.evaluate (the box-filtered law of the jerk law)
@@ -138,6 +139,80 @@ void gp_jacobian_rate(idx_t B, idx_t dof, const double *X, const double *T, cons
             for (int i = 0; i < 3; ++i) { a[i] += w[i] * ue[k]; b[i] += v[i] * ue[k]; }
         }
     }
+}
+
+/* The geodesic acceleration a = -G^-1 b (geodesic.GeodesicEquations.acceleration) at N samples, from
+ * the generators X (N, dof, 4, 4) and tool poses T (N, 4, 4) at q, the velocities v (N, dof), the
+ * metric's weights mask (4, 4) on dT and its epsilon: Y_k = X_k T, G_ij = <Y_i, Y_j>_mask + eps
+ * delta_ij, W_k = X_k v_k, P_k = (W_1 + .. + W_k) - W_k, H = (sum_k (W_k + 2 P_k) W_k) T,
+ * b_i = <Y_i, H>_mask. G is solved by Cholesky; scratch holds dof (16 + dof + 1) + 64 doubles.
+ * Returns 0, or 1 + the first sample where G is not numerically positive definite (a is then
+ * incomplete: the caller takes its numpy path, which tells a singular metric apart). */
+int64_t gp_geodesic_acceleration(idx_t N, idx_t dof, const double *X, const double *T, const double *v,
+                                 const double *mask, double eps, double *a, double *scratch)
+{
+    double *Y = scratch, *G = Y + 16 * dof, *b = G + dof * dof, *Cs = b + dof;   /* Cs: 16 C, 16 W, 16 S, 16 H */
+    double *Cm = Cs, *Wm = Cs + 16, *S = Cs + 32, *H = Cs + 48;
+    for (idx_t n = 0; n < N; ++n) {
+        const double *Xn = X + n * dof * 16, *Tn = T + n * 16, *vn = v + n * dof;
+        for (idx_t k = 0; k < dof; ++k)
+            for (int r = 0; r < 4; ++r)
+                for (int c = 0; c < 4; ++c) {
+                    const double *x = Xn + 16 * k + 4 * r;
+                    Y[16 * k + 4 * r + c] = x[0] * Tn[c] + x[1] * Tn[4 + c] + x[2] * Tn[8 + c] + x[3] * Tn[12 + c];
+                }
+        for (idx_t i = 0; i < dof; ++i)
+            for (idx_t j = 0; j <= i; ++j) {
+                double g = 0.0;
+                for (int e = 0; e < 16; ++e) g += mask[e] * Y[16 * i + e] * Y[16 * j + e];
+                G[i * dof + j] = G[j * dof + i] = g + (i == j ? eps : 0.0);
+            }
+        for (int e = 0; e < 16; ++e) { Cm[e] = 0.0; S[e] = 0.0; }
+        for (idx_t k = 0; k < dof; ++k) {
+            const double *x = Xn + 16 * k;
+            for (int e = 0; e < 16; ++e) { Wm[e] = x[e] * vn[k]; Cm[e] += Wm[e]; }
+            double L[16];                                       /* W_k + 2 P_k, P_k = C_k - W_k */
+            for (int e = 0; e < 16; ++e) L[e] = Wm[e] + 2.0 * (Cm[e] - Wm[e]);
+            for (int r = 0; r < 4; ++r)
+                for (int c = 0; c < 4; ++c)
+                    S[4 * r + c] += L[4 * r] * Wm[c] + L[4 * r + 1] * Wm[4 + c] + L[4 * r + 2] * Wm[8 + c]
+                                    + L[4 * r + 3] * Wm[12 + c];
+        }
+        for (int r = 0; r < 4; ++r)
+            for (int c = 0; c < 4; ++c)
+                H[4 * r + c] = S[4 * r] * Tn[c] + S[4 * r + 1] * Tn[4 + c] + S[4 * r + 2] * Tn[8 + c]
+                               + S[4 * r + 3] * Tn[12 + c];
+        for (idx_t i = 0; i < dof; ++i) {
+            double s = 0.0;
+            for (int e = 0; e < 16; ++e) s += mask[e] * Y[16 * i + e] * H[e];
+            b[i] = -s;
+        }
+        /* Cholesky G = L L^T in place (lower triangle), then two triangular solves */
+        for (idx_t j = 0; j < dof; ++j) {
+            double d = G[j * dof + j];
+            for (idx_t k = 0; k < j; ++k) d -= G[j * dof + k] * G[j * dof + k];
+            if (!(d > 0.0) || !isfinite(d)) return n + 1;
+            d = sqrt(d);
+            G[j * dof + j] = d;
+            for (idx_t i = j + 1; i < dof; ++i) {
+                double s = G[i * dof + j];
+                for (idx_t k = 0; k < j; ++k) s -= G[i * dof + k] * G[j * dof + k];
+                G[i * dof + j] = s / d;
+            }
+        }
+        double *an = a + n * dof;
+        for (idx_t i = 0; i < dof; ++i) {
+            double s = b[i];
+            for (idx_t k = 0; k < i; ++k) s -= G[i * dof + k] * an[k];
+            an[i] = s / G[i * dof + i];
+        }
+        for (idx_t i = dof - 1; i >= 0; --i) {
+            double s = an[i];
+            for (idx_t k = i + 1; k < dof; ++k) s -= G[k * dof + i] * an[k];
+            an[i] = s / G[i * dof + i];
+        }
+    }
+    return 0;
 }
 
 static struct PyModuleDef kernels_module = {

@@ -21,7 +21,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['LIB', 'REASON', 'Pinned', 'active', 'f64', 'frames', 'generators', 'jacobian_rate', 'numpy_only',
+__all__ = ['LIB', 'REASON', 'Pinned', 'active', 'f64', 'frames', 'generators', 'geodesic_acceleration', 'jacobian_rate',
+           'numpy_only',
            'polynomials']
 
 _P = ctypes.c_void_p
@@ -33,6 +34,7 @@ SIGNATURES: dict[str, list[Any]] = {
     'gp_frames': [_I, _I, _P, _P, _P, _P, _P, _P],
     'gp_polynomials': [_I, _P, _I, _P, _P, _I, _I, _P],
     'gp_jacobian_rate': [_I, _I, _P, _P, _P, _P],
+    'gp_geodesic_acceleration': [_I, _I, _P, _P, _P, _P, _D, _P, _P],
     'gp_build_piecewise': [_P, _P, _I, _P, _D, _D, _P, _P, _P, _P, _P, _P, _P],
     'gp_refine': [_I, _I, _I] + [_P] * 11,
     'gp_piecewise_evaluate': [_I, _P, _I, _P, _P, _D, _I, _P, _P, _P, _P, _P, _P],
@@ -56,6 +58,7 @@ def _load() -> tuple[ctypes.CDLL | None, str]:
         fn = getattr(lib, name)
         fn.argtypes = args
         fn.restype = None
+    lib.gp_geodesic_acceleration.restype = _I
     return lib, 'on'
 
 
@@ -134,6 +137,22 @@ def jacobian_rate(X: np.ndarray, T: np.ndarray, u: np.ndarray) -> np.ndarray:
     LIB.gp_jacobian_rate(int(np.prod(batch, dtype=np.int64)), dof, Xb.ctypes.data, Tb.ctypes.data,
                          ub.ctypes.data, out.ctypes.data)
     return out
+
+
+def geodesic_acceleration(X: np.ndarray, T: np.ndarray, v: np.ndarray, mask: np.ndarray, epsilon: float
+                          ) -> np.ndarray | None:
+    """The geodesic acceleration (N, dof) of :class:`.geodesic.GeodesicEquations` from the generators
+    X (N, dof, 4, 4) and tool poses T (N, 4, 4) at q, the velocities v (N, dof), the metric's
+    weights ``mask`` (4, 4) and ``epsilon``; None where its G is not numerically positive definite
+    (the numpy path then decides, and names a singular metric)."""
+    assert LIB is not None
+    X, T, v, mask = f64(X), f64(T), f64(v), f64(mask)
+    N, dof = v.shape
+    a = np.empty((N, dof))
+    scratch = np.empty(dof * (17 + dof) + 64)
+    bad = LIB.gp_geodesic_acceleration(N, dof, X.ctypes.data, T.ctypes.data, v.ctypes.data, mask.ctypes.data,
+                                       float(epsilon), a.ctypes.data, scratch.ctypes.data)
+    return None if bad else a
 
 
 def polynomials(tables: Pinned, times: np.ndarray, order: int) -> tuple[np.ndarray, ...]:

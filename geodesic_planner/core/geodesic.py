@@ -19,6 +19,7 @@ from typing import Protocol
 
 import numpy as np
 
+from . import compiled
 from .cancel import checkpoint
 from .chunks import in_chunks
 from .errors import BVPError, SingularMetricError
@@ -92,17 +93,16 @@ class GeodesicEquations:
                 f'for robot {self.robot.name!r}') from None
 
     def acceleration(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Geodesic acceleration q'' for q, v of shape (N, dof) -> (N, dof).
-
-        The last few results are remembered by value: solve_bvp evaluates the same points again
-        after its line search and for its residual estimate.
-        """
+        """Geodesic acceleration q'' for q, v of shape (N, dof) -> (N, dof); the last few results are
+        remembered by value (solve_bvp evaluates the same points again after its line search)."""
         q = np.ascontiguousarray(q, dtype=float)
         v = np.ascontiguousarray(v, dtype=float)
         key = q.tobytes() + v.tobytes()
         hit = self._acc_cache.get(key)
-        if hit is None:
-            hit = self.evaluate(q, v, jacobians=False)[0]
+        if hit is None:     # compiled, or numpy where G is not positive definite (it names a singular metric)
+            hit = compiled.geodesic_acceleration(*self._generators(q), v, self._mask, self.metric.epsilon) \
+                if compiled.active() else None
+            hit = self.evaluate(q, v, jacobians=False)[0] if hit is None else hit
             if len(self._acc_cache) >= 8:
                 self._acc_cache.pop(next(iter(self._acc_cache)))
             self._acc_cache[key] = hit

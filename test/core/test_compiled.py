@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import re
 
 import numpy as np
 import pytest
@@ -93,3 +94,38 @@ def test_jacobian_rate_matches_numpy_and_finite_differences():
     h = 1e-6
     fd = (robot.jacobian(q[:, None] + h * u) - robot.jacobian(q[:, None] - h * u)) / (2 * h)
     np.testing.assert_allclose(got, fd, atol=1e-6)
+
+
+@pytest.mark.parametrize('name,metric', [('ur5e', {}), ('ur5e', {'position_weight': 2.0, 'orientation_weight': 0.5}),
+                                         ('panda', {'epsilon': 1e-3}), ('rrpp', {}), ('planar_3r', {})])
+def test_geodesic_acceleration_matches_numpy(name, metric):
+    from geodesic_planner import load_robot
+    from geodesic_planner.core.geodesic import GeodesicEquations
+    from geodesic_planner.core.metric import Metric
+    robot = load_robot(name)
+    rng = np.random.default_rng(13)
+    lo, hi = np.maximum(robot.lower, -2.0), np.minimum(robot.upper, 2.0)
+    q = rng.uniform(lo, hi, (200, robot.dof))
+    v = rng.normal(size=(200, robot.dof))
+    got = GeodesicEquations(robot, Metric(**metric)).acceleration(q, v)     # a fresh one: nothing remembered
+    with compiled.numpy_only():
+        want = GeodesicEquations(robot, Metric(**metric)).acceleration(q, v)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
+
+
+def test_singular_metric_is_named_as_before():
+    # the position metric on a 6-joint arm leaves the orientation free: G is singular, and the
+    # compiled path hands over to numpy, which raises the same error
+    from geodesic_planner import load_robot
+    from geodesic_planner.core.errors import SingularMetricError
+    from geodesic_planner.core.geodesic import GeodesicEquations
+    from geodesic_planner.core.metric import Metric
+    robot = load_robot('ur5e')
+    q, v = robot.home[None] + 0.1, np.ones((1, robot.dof))
+    with pytest.raises(SingularMetricError) as got:
+        GeodesicEquations(robot, Metric(kind='position')).acceleration(q, v)
+    with compiled.numpy_only(), pytest.raises(SingularMetricError) as want:
+        GeodesicEquations(robot, Metric(kind='position')).acceleration(q, v)
+    def words(err: BaseException) -> str:     # the message without its numbers (round-off differs)
+        return re.sub(r'[-+]?\d[\d.e+-]*', '#', str(err))
+    assert words(got.value) == words(want.value) and "singular for robot 'ur5e'" in str(got.value)
