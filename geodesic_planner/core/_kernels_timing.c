@@ -193,6 +193,34 @@ void gp_build_piecewise(const double *s, const double *x, idx_t L, const idx_t *
     seg_key[0] = -INFINITY;
 }
 
+/* sampling._interpolation_suspects: steps (n,) of lengths h whose cubic-Hermite interpolation is not
+ * trustworthy. left, right (n, 6 dof): each step's end data (first, second and third derivatives)
+ * from the left, then from the right; scale (3, dof): their largest magnitudes. Two mid-point
+ * estimates of the first and second derivatives per joint, compared against tol times the joint's
+ * scale, with the numpy code's formulas; bad (n,) 0/1. */
+void gp_suspects(idx_t n, idx_t dof, const double *h, const double *left, const double *right,
+                 const double *scale, double tol, uint8_t *bad)
+{
+    const double tiny = 1e-300;
+    const idx_t w = 6 * dof;
+    for (idx_t k = 0; k < n; ++k) {
+        const double *L = left + k * w, *R = right + k * w, hk = h[k];
+        int flag = 0;
+        for (idx_t j = 0; j < dof && !flag; ++j) {
+            const double a0 = L[3 * dof + j], b0 = L[4 * dof + j], c0 = L[5 * dof + j];
+            const double b1 = R[dof + j], c1 = R[2 * dof + j];
+            const double mid1a = 0.5 * (L[3 * dof + j] + R[j]) + hk * (L[4 * dof + j] - R[dof + j]) / 8.0;
+            const double mid1b = 0.5 * (L[4 * dof + j] + R[dof + j]) + hk * (L[5 * dof + j] - R[2 * dof + j]) / 8.0;
+            const double mid2a = a0 + hk * ((((13.0 / 32.0) * b0 + (11.0 / 192.0) * hk * c0) + (3.0 / 32.0) * b1)
+                                            - (5.0 / 192.0) * hk * c1);
+            const double mid2b = b0 + hk * (3.0 * c0 + c1) / 8.0;
+            const double lim_a = tol * (scale[j] + tiny), lim_b = tol * ((scale[dof + j] + scale[j]) + tiny);
+            if (fabs(mid1a - mid2a) > lim_a || fabs(mid1b - mid2b) > lim_b) flag = 1;
+        }
+        bad[k] = (uint8_t)flag;
+    }
+}
+
 /* sampling.PathSamples.refined: the n steps of nodes s (n + 1,) each split into `factor` equal
  * parts, q' and q'' at the new nodes cubic Hermite (coef (8, dof, n) as in gp_hermite_ratios), the
  * one-sided values aL, aR, bL, bR (n + 1, dof) kept at the old nodes. Outputs s_out (m,) and

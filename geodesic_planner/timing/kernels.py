@@ -21,7 +21,7 @@ from ..core.compiled import f64 as _f64
 
 __all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_tables', 'build_piecewise', 'evaluate',
            'forward_pass', 'hermite_ratios', 'limit_tables', 'numpy_only', 'path_tables', 'piecewise_tables', 'ratios',
-           'refine']
+           'refine', 'suspects']
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,6 +71,18 @@ def refine(rows: Pinned, coef: Pinned, factor: int) -> tuple[np.ndarray, ...]:
     outs = (base + 8 * (m + i * m * dof) for i in range(4))
     _LIB.gp_refine(n, dof, factor, *rows.ptrs[:5], coef.ptrs[1], base, *outs)
     return (block[:m], *(block[m + i * m * dof:m + (i + 1) * m * dof].reshape(m, dof) for i in range(4)))
+
+
+def suspects(h: np.ndarray, left: np.ndarray, right: np.ndarray, scale: np.ndarray, dof: int, tol: float
+             ) -> np.ndarray:
+    """:func:`.sampling._interpolation_suspects` compiled (same arguments, h (n,) or (n, 1)): (n,) bool."""
+    assert _LIB is not None
+    h, left, right, scale = (_f64(a) for a in (h, left, right, scale))
+    n = h.size
+    bad = np.empty(n, dtype=np.uint8)
+    _LIB.gp_suspects(n, dof, h.ctypes.data, left.ctypes.data, right.ctypes.data, scale.ctypes.data, float(tol),
+                     bad.ctypes.data)
+    return bad.view(bool)
 
 
 def piecewise_tables(t_offsets: np.ndarray, pieces: np.ndarray, key_step: float, seg_key: np.ndarray,

@@ -243,6 +243,8 @@ def _interpolation_suspects(h: np.ndarray, left: np.ndarray, right: np.ndarray, 
     times the joint's scale flags the step. Nothing is divided by h, so slightly inconsistent
     derivative data (a collocation solution) does not make the indicator grow under refinement.
     """
+    if kernels.active():
+        return kernels.suspects(h, left, right, scale, dof, tol)
     d2 = 2 * dof
     # (q', q'') and their slopes (q'', q''') at both ends of each step: the Hermite mid-points.
     mid_1 = (0.5 * (left[:, 3 * dof:3 * dof + d2] + right[:, :d2])

@@ -223,3 +223,28 @@ def test_refined_samples_match_numpy(factor):
             assert g.shape == w.shape, name
             np.testing.assert_allclose(g, w, rtol=1e-13, atol=1e-14, err_msg=name)
         assert got.s.size == factor * (ps.s.size - 1) + 1 and np.all(np.diff(got.s) > 0)
+
+
+def test_interpolation_suspects_match_numpy():
+    from geodesic_planner.timing.sampling import _interpolation_suspects, refine_adaptively
+    rng = np.random.default_rng(21)
+    dof, n = 4, 500
+    left, right = rng.normal(size=(n, 6 * dof)), rng.normal(size=(n, 6 * dof))
+    scale = np.abs(rng.normal(size=(3, dof))) + 0.1
+    h = rng.uniform(1e-4, 0.05, (n, 1))
+    for tol in (1e-5, 1e-2, 1.0):                  # from all steps suspect to some to none
+        got = _interpolation_suspects(h, left, right, scale, dof, tol)
+        with kernels.numpy_only():
+            want = _interpolation_suspects(h, left, right, scale, dof, tol)
+        np.testing.assert_array_equal(got, want)
+    # and the bisections they lead to, on a path that needs them (the paper's 3R, by collocation)
+    from pathlib import Path
+    from geodesic_planner import GeodesicPlanner
+    from geodesic_planner.io.requests import load_request
+    req = load_request(Path(__file__).resolve().parents[2] / 'msg_examples' / 'paper_3r.yaml')
+    path = GeodesicPlanner(req.robot).plan(req.start, req.goal)
+    got = refine_adaptively(path, sample_path(path, 20))
+    with kernels.numpy_only():
+        want = refine_adaptively(path, sample_path(path, 20))
+    assert got.s.size == want.s.size > 21
+    np.testing.assert_array_equal(got.s, want.s)
