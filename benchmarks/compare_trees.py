@@ -7,7 +7,8 @@ A tree is a checkout of the repository (``git worktree add /tmp/before <commit>`
 starts one child process per tree (PYTHONPATH = the tree, the same venv), one after the other, so
 both see the same machine load; each child times the plans, ``timed()`` and ``timed(max_jerk)`` of
 the ur5e, paper 3R and panda cases and the blended ur5e sequence under a jerk limit (the rows of
-speed.py; median of 8-15 calls after a warm-up). Prints the median over the rounds per call and
+speed.py, measured as it does: once per request on requests never planned before; medians of
+8-15). Prints the median over the rounds per call and
 tree, and before / after. A tree whose compiled kernels are not built (a fresh worktree) gets
 them compiled first, as setup.py does. Nothing is asserted.
 """
@@ -27,35 +28,32 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 FLAGS = ['-O2', '-fno-math-errno', '-ffp-contract=off', '-fPIC', '-shared']
 
 CHILD = r'''
-import json, sys, time
-import numpy as np
-from speed import BLEND_JERK, BLEND_RADIUS, JERK_FACTOR, plan_cases, smooth_peak_jerk
+import json
+from speed import (BLEND_JERK, BLEND_RADIUS, JERK_FACTOR, VARIANT_STEP, fresh_plans, measure_fresh, moved,
+                   plan_cases, smooth_peak_jerk)
 from blends import sequences
 try:
     from geodesic_planner.core.compiled import REASON
 except ImportError:          # a tree from before the compiled kernels
     REASON = 'none in this tree'
 
-def median_ms(fn, repeats):
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)) * 1e3
-
 out = {'kernels': REASON}
 for case in plan_cases():
-    path = case.plan()
-    jmax = JERK_FACTOR * smooth_peak_jerk(path)
-    out[f'{case.name} | plan'] = median_ms(case.plan, 15)
-    out[f'{case.name} | timed()'] = median_ms(path.timed, 15)
-    out[f'{case.name} | timed(max_jerk)'] = median_ms(lambda: path.timed(max_jerk=jmax), 10)
+    jmax = JERK_FACTOR * smooth_peak_jerk(case.plan())
+    timing, paths = fresh_plans(case.variant, 16)
+    out[f'{case.name} | plan'] = timing.median_ms
+    out[f'{case.name} | timed()'] = measure_fresh(paths, lambda p: p.timed()).median_ms
+    _, paths = fresh_plans(case.variant, 11, step=-1)
+    out[f'{case.name} | timed(max_jerk)'] = measure_fresh(paths, lambda p: p.timed(max_jerk=jmax)).median_ms
 name, planner, poses, q0 = sequences()[0]
-seq = planner.plan_through(poses, start_joints=q0, blend_radius=BLEND_RADIUS)
-out[f'{name}, r = {BLEND_RADIUS:g} m | blended timed(max_jerk {BLEND_JERK:g})'] = median_ms(
-    lambda: seq.timed(max_jerk=BLEND_JERK), 8)
+
+def plan_seq(i):
+    goal = moved(poses[-1], [VARIANT_STEP * i, 0.0, 0.0], [0.0, 0.0, 0.0])
+    return planner.plan_through(poses[:-1] + [goal], start_joints=q0, blend_radius=BLEND_RADIUS)
+
+_, paths = fresh_plans(plan_seq, 9)
+out[f'{name}, r = {BLEND_RADIUS:g} m | blended timed(max_jerk {BLEND_JERK:g})'] = measure_fresh(
+    paths, lambda p: p.timed(max_jerk=BLEND_JERK)).median_ms
 print(json.dumps(out))
 '''
 
