@@ -12,6 +12,7 @@
  *   gp_piecewise_evaluate  smoothing.PiecewiseLaw.evaluate (the smoothed law s(t) and derivatives)
  *   gp_box_evaluate        box_filter.BoxLaw.evaluate (the box-filtered law of the jerk law)
  *   gp_suspects            sampling._interpolation_suspects (where the samples need bisecting)
+ *   gp_hermite_coef        sampling.PathSamples.coef (the cubic Hermite coefficients of the steps)
  *   gp_refine              sampling.PathSamples.refined (finer steps, q' and q'' cubic Hermite)
  *   gp_hermite_ratios      sampling.PathSamples.interpolate_t (+ third_derivative_t) and the
  *                          per-sample ratios to the velocity, acceleration (and jerk) limits

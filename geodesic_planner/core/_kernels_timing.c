@@ -221,6 +221,32 @@ void gp_suspects(idx_t n, idx_t dof, const double *h, const double *left, const 
     }
 }
 
+/* sampling.PathSamples.coef: per step of nodes s (n + 1,), the cubic Hermite coefficients of the first
+ * and second derivatives in r = s - s_k, from the one-sided values and slopes at both ends (aR, bR,
+ * cR leaving node k; aL, bL, cL arriving at node k + 1; each (n + 1, dof)); out (8, dof, n): rows 0-3
+ * the first derivative, 4-7 the second, the numpy code's formulas. */
+void gp_hermite_coef(idx_t n, idx_t dof, const double *s, const double *aL, const double *aR, const double *bL,
+                     const double *bR, const double *cL, const double *cR, double *out)
+{
+    const idx_t plane = dof * n;
+    for (int g = 0; g < 2; ++g) {
+        const double *V0 = g ? bR : aR, *M0 = g ? cR : bR, *V1 = g ? bL : aL, *M1 = g ? cL : bL;
+        double *o = out + 4 * g * plane;
+        for (idx_t j = 0; j < dof; ++j)
+            for (idx_t k = 0; k < n; ++k) {
+                const double h = s[k + 1] - s[k];
+                const double v0 = V0[k * dof + j], m0 = M0[k * dof + j];
+                const double v1 = V1[(k + 1) * dof + j], m1 = M1[(k + 1) * dof + j];
+                const double slope = (v1 - v0) / h;
+                const idx_t at = j * n + k;
+                o[at] = v0;
+                o[plane + at] = m0;
+                o[2 * plane + at] = (3.0 * slope - 2.0 * m0 - m1) / h;
+                o[3 * plane + at] = (m0 + m1 - 2.0 * slope) / (h * h);
+            }
+    }
+}
+
 /* sampling.PathSamples.refined: the n steps of nodes s (n + 1,) each split into `factor` equal
  * parts, q' and q'' at the new nodes cubic Hermite (coef (8, dof, n) as in gp_hermite_ratios), the
  * one-sided values aL, aR, bL, bR (n + 1, dof) kept at the old nodes. Outputs s_out (m,) and

@@ -37,6 +37,7 @@ SIGNATURES: dict[str, list[Any]] = {
     'gp_geodesic_acceleration': [_I, _I, _P, _P, _P, _P, _D, _P, _P],
     'gp_build_piecewise': [_P, _P, _I, _P, _D, _D, _P, _P, _P, _P, _P, _P, _P],
     'gp_refine': [_I, _I, _I] + [_P] * 11,
+    'gp_hermite_coef': [_I, _I] + [_P] * 8,
     'gp_suspects': [_I, _I, _P, _P, _P, _P, _D, _P],
     'gp_piecewise_evaluate': [_I, _P, _I, _P, _P, _D, _I, _P, _P, _P, _P, _P, _P],
     'gp_box_evaluate': [_I, _P, _I] + [_P] * 13,

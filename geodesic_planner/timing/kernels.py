@@ -20,8 +20,8 @@ from ..core.compiled import REASON, Pinned, active, numpy_only
 from ..core.compiled import f64 as _f64
 
 __all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_tables', 'build_piecewise', 'evaluate',
-           'forward_pass', 'hermite_ratios', 'limit_tables', 'numpy_only', 'path_tables', 'piecewise_tables', 'ratios',
-           'refine', 'suspects']
+           'forward_pass', 'hermite_coef', 'hermite_ratios', 'limit_tables', 'numpy_only', 'path_tables',
+           'piecewise_tables', 'ratios', 'refine', 'suspects']
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,6 +83,17 @@ def suspects(h: np.ndarray, left: np.ndarray, right: np.ndarray, scale: np.ndarr
     _LIB.gp_suspects(n, dof, h.ctypes.data, left.ctypes.data, right.ctypes.data, scale.ctypes.data, float(tol),
                      bad.ctypes.data)
     return bad.view(bool)
+
+
+def hermite_coef(s: np.ndarray, aL: np.ndarray, aR: np.ndarray, bL: np.ndarray, bR: np.ndarray, cL: np.ndarray,
+                 cR: np.ndarray) -> np.ndarray:
+    """:attr:`.sampling.PathSamples.coef` compiled, from the samples' arrays: (8, dof, n)."""
+    assert _LIB is not None
+    arrays = [_f64(a) for a in (s, aL, aR, bL, bR, cL, cR)]
+    n, dof = arrays[0].size - 1, arrays[1].shape[1]
+    out = np.empty((8, dof, n))
+    _LIB.gp_hermite_coef(n, dof, *(a.ctypes.data for a in arrays), out.ctypes.data)
+    return out
 
 
 def piecewise_tables(t_offsets: np.ndarray, pieces: np.ndarray, key_step: float, seg_key: np.ndarray,

@@ -85,6 +85,8 @@ class PathSamples:
         Rows 0..3: q' = p0 + r (p1 + r (p2 + r p3)); rows 4..7 the same for q''. The cubic
         Hermite interpolant of the values and slopes at both ends of each step.
         """
+        if kernels.active():
+            return kernels.hermite_coef(self.s, self.aL, self.aR, self.bL, self.bR, self.cL, self.cR)
         h = np.diff(self.s)
         rows = []
         for v0, m0, v1, m1 in ((self.aR[:-1], self.bR[:-1], self.aL[1:], self.bL[1:]),

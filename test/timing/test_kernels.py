@@ -248,3 +248,13 @@ def test_interpolation_suspects_match_numpy():
         want = refine_adaptively(path, sample_path(path, 20))
     assert got.s.size == want.s.size > 21
     np.testing.assert_array_equal(got.s, want.s)
+
+
+def test_hermite_coefficients_match_numpy():
+    for path in (curved(), CornerPath([1.0, 0.5], [0.2, -1.0]), _ur5e_line_path()[1].plan(
+            _ur5e_line_path()[3], _ur5e_line_path()[4], start_joints=_ur5e_line_path()[2])):
+        got = sample_path(path, 30).coef
+        with kernels.numpy_only():
+            want = sample_path(path, 30).coef
+        assert got.shape == want.shape and got.flags.c_contiguous
+        np.testing.assert_array_equal(got, want)       # the same formulas, in the same order
