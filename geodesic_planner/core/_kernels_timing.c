@@ -425,13 +425,9 @@ void gp_topp_rows(idx_t n, idx_t dof, const double *s, const double *aL, const d
             if (moving && den > 0) { Ak[j] = 1.0 / den; Bk[j] = -2.0 * dl * c / den; }
             else { Ak[j] = 0.0; Bk[j] = INFINITY; }
         }
-        /* pairs: a pair whose quotient is certainly above the smallest so far is skipped without
-         * dividing (num > xp den (1 + 1e-12) implies num / den > xp after rounding): the same minimum */
         for (idx_t i = 0; i < R; ++i)
             for (idx_t j = i + 1; j < R; ++j) {
-                const double num = dk[i] + dk[j], den = fabs(al[i] - al[j]);
-                if (num > xp * den * (1.0 + 1e-12)) continue;
-                double z = num / den;
+                double z = (dk[i] + dk[j]) / fabs(al[i] - al[j]);
                 if (z < xp || isnan(z)) xp = nmin(xp, z);
             }
         double v = nmin(nmin(nmin(xv, xz), nmin(xp, xl)), 1e12);
