@@ -1,6 +1,18 @@
 /* The time laws' compiled kernels (see _kernels.c for the list and the conventions). */
 #include "_kernels.h"
 
+/* q' and q'' (a, b) at r from a step's cubic Hermite coefficients c (rows 0-7 of
+ * sampling.PathSamples.coef, `plane` apart), by the Horner steps of its numpy code. */
+static inline void hermite(const double *c, idx_t plane, double r, double *a, double *b)
+{
+    double x = c[3 * plane];
+    x *= r; x += c[2 * plane]; x *= r; x += c[plane]; x *= r; x += c[0];
+    double y = c[7 * plane];
+    y *= r; y += c[6 * plane]; y *= r; y += c[5 * plane]; y *= r; y += c[4 * plane];
+    *a = x;
+    *b = y;
+}
+
 /* The smoothed law at times t (m,). pieces (6, L): tau, duration, s_start, span, s_end, T*;
  * seg (6, S): start, s0, v0, u, S1, S2 of each s* segment, searched by seg_key (S,).
  * Outputs s, sd, sdd and (when sddd is not NULL) sddd, each (m,). */
@@ -269,11 +281,8 @@ void gp_refine(idx_t n, idx_t dof, idx_t factor, const double *s, const double *
             const double extra = s[k] + h * ((double)i / (double)factor), r = extra - s[k];
             s_out[o + i] = extra;
             for (idx_t j = 0; j < dof; ++j) {
-                const double *c = coef + j * n + k;
-                double a = c[3 * plane];
-                a *= r; a += c[2 * plane]; a *= r; a += c[plane]; a *= r; a += c[0];
-                double b = c[7 * plane];
-                b *= r; b += c[6 * plane]; b *= r; b += c[5 * plane]; b *= r; b += c[4 * plane];
+                double a, b;
+                hermite(coef + j * n + k, plane, r, &a, &b);
                 const idx_t at = (o + i) * dof + j;
                 aL_out[at] = aR_out[at] = a;
                 bL_out[at] = bR_out[at] = b;
@@ -300,11 +309,8 @@ void gp_hermite_ratios(idx_t m, const double *s, const double *sd, const double 
         const double r = s[i] - nodes[k], v = sd[i], acc = sdd[i], v2 = v * v;
         double rv = -INFINITY, ra = -INFINITY, rj = -INFINITY;
         for (idx_t j = 0; j < dof; ++j) {
-            const double *c = coef + j * n + k;
-            double a = c[3 * plane];
-            a *= r; a += c[2 * plane]; a *= r; a += c[plane]; a *= r; a += c[0];
-            double b = c[7 * plane];
-            b *= r; b += c[6 * plane]; b *= r; b += c[5 * plane]; b *= r; b += c[4 * plane];
+            double a, b;
+            hermite(coef + j * n + k, plane, r, &a, &b);
             double x = fabs(a * v) * inv_vmax[j];
             if (x > rv || isnan(x)) rv = x;
             x = fabs(a * acc + b * v2) * inv_amax[j];
