@@ -111,15 +111,19 @@ class PathSamples:
         return kernels.path_tables(self.s, self.coef)
 
     @functools.cached_property
+    def _jumps_mask(self) -> np.ndarray:
+        """(n + 1,) bool: q' or q'' jumps at the node (a breakpoint) and the motion does not rest."""
+        return ((self.aL != self.aR).any(axis=1) | (self.bL != self.bR).any(axis=1)) & ~self.stop
+
+    @functools.cached_property
     def jumps(self) -> np.ndarray:
         """Indices of the nodes where q' or q'' jumps (a breakpoint) but the motion does not rest."""
-        return np.flatnonzero(((self.aL != self.aR).any(axis=1) | (self.bL != self.bR).any(axis=1)) & ~self.stop)
+        return np.flatnonzero(self._jumps_mask)
 
     @functools.cached_property
     def jumps3(self) -> np.ndarray:
         """:attr:`jumps`, and the nodes where only q''' jumps (for the jerk checks)."""
-        return np.flatnonzero(((self.aL != self.aR).any(axis=1) | (self.bL != self.bR).any(axis=1)
-                               | (self.cL != self.cR).any(axis=1)) & ~self.stop)
+        return np.flatnonzero(self._jumps_mask | ((self.cL != self.cR).any(axis=1) & ~self.stop))
 
     @functools.cached_property
     def kernel_rows(self) -> kernels.Pinned:

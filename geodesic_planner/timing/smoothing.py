@@ -414,12 +414,12 @@ class LimitCheck:
 
 
 def _ratios(ps: PathSamples, law: PiecewiseLaw, t: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
-            tool: ToolRows | None) -> tuple[np.ndarray, ...]:
+            tool: ToolRows | None, pinned: kernels.Pinned | None) -> tuple[np.ndarray, ...]:
     """At sorted times t (M,): s, sdot, sddot and the largest velocity and acceleration ratios
-    to the limits over the joints (and the tool rows), q' and q'' interpolated from ``ps``."""
-    if kernels.active():
-        s, sd, sdd, rv_t, ra_t = kernels.ratios(law.kernel_tables, ps.kernel_tables,
-                                                kernels.limit_tables(vmax, amax), t, jerk=False)
+    to the limits over the joints (and the tool rows), q' and q'' interpolated from ``ps``;
+    ``pinned``: the limits for the compiled kernel (:func:`.kernels.limit_tables`; None without it)."""
+    if pinned is not None:
+        s, sd, sdd, rv_t, ra_t = kernels.ratios(law.kernel_tables, ps.kernel_tables, pinned, t, jerk=False)
         if tool is not None:
             rv_t = np.maximum(rv_t, tool.ratios(s, sd))
         return s, sd, sdd, rv_t, ra_t
@@ -456,13 +456,14 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
     # Also samples about uniform in s: a long law can cross a stretch of the path in a fraction
     # of its duration, where samples uniform in t are sparse.
     t_chk = distinct_times(np.concatenate([t_chk, law.times_at(UNIFORM_S)]))
-    s, sd, sdd, rv_t, ra_t = _ratios(ps, law, t_chk, vmax, amax, tool)
+    pinned = kernels.limit_tables(vmax, amax) if kernels.active() else None     # for both calls
+    s, sd, sdd, rv_t, ra_t = _ratios(ps, law, t_chk, vmax, amax, tool, pinned)
     # Around the highest local peaks, samples at a quarter of the uniform spacing.
     need = np.maximum(rv_t, np.sqrt(ra_t))
     extra = peak_samples(t_chk, need, law.duration / (m - 1), law.duration)
     inner = ps.jumps
     if extra.size:       # appended: only the breakpoints' crossing times need the samples in order
-        more = _ratios(ps, law, extra, vmax, amax, tool)
+        more = _ratios(ps, law, extra, vmax, amax, tool, pinned)
         t_chk, s, sd, sdd, rv_t, ra_t = (np.concatenate([u, v]) for u, v in zip((t_chk, s, sd, sdd, rv_t, ra_t),
                                                                               (extra, *more)))
         if inner.size:
