@@ -8,6 +8,7 @@
  *   gp_polynomials         core.polynomials.evaluate_polynomials (the paths' quintic splines)
  *   gp_jacobian_rate       core.redundant.RedundantEquations.rate (dJ[u], the redundant solver)
  *   gp_geodesic_acceleration  core.geodesic.GeodesicEquations.acceleration (the geodesic equations)
+ *   gp_geodesic_jerk       core.geodesic.GeodesicEquations.jerk (q'' and q''' along a geodesic)
  *   gp_build_piecewise     smoothing.build_piecewise_law (the smoothed law's tables)
  *   gp_piecewise_evaluate  smoothing.PiecewiseLaw.evaluate (the smoothed law s(t) and derivatives)
  *   gp_box_evaluate        box_filter.BoxLaw.evaluate (the box-filtered law of the jerk law)
@@ -19,6 +20,8 @@
  *   gp_backward_pass       topp: hi_k = min(static_k, min_j A_kj hi_{k+1} + B_kj), hi_n = 0
  *   gp_forward_pass        topp: the greedy forward pass
  *   gp_topp_rows           topp: the passes' constraint rows and static bounds
+ *   gp_box_search_grid     jerk._Checker._dense(full=False): the width search's check grid of a
+ *                          box-filtered law, the law there and its ratios, in one call
  *
  * This file holds the core's kernels and the module init, which only makes the extension importable
  * (so that setuptools builds it with the package; it defines no Python functions); the time laws'
@@ -72,6 +75,48 @@ void gp_frames(idx_t N, idx_t dof, const double *q, const double *fixed, const i
             for (int a = 0; a < 16; ++a) T[a] = R[a];
         }
         for (int a = 0; a < 16; ++a) T_out[n * 16 + a] = T[a];
+    }
+}
+
+/* out = A B for 4 x 4 matrices (row-major). */
+static inline void mul4(const double *A, const double *B, double *out)
+{
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c)
+            out[4 * r + c] = A[4 * r] * B[c] + A[4 * r + 1] * B[4 + c] + A[4 * r + 2] * B[8 + c] + A[4 * r + 3] * B[12 + c];
+}
+
+/* G = L L^T in place (L in the lower triangle) for G (dof, dof) symmetric; 0 when G is not
+ * numerically positive definite. */
+static int cholesky(double *G, idx_t dof)
+{
+    for (idx_t j = 0; j < dof; ++j) {
+        double d = G[j * dof + j];
+        for (idx_t k = 0; k < j; ++k) d -= G[j * dof + k] * G[j * dof + k];
+        if (!(d > 0.0) || !isfinite(d)) return 0;
+        d = sqrt(d);
+        G[j * dof + j] = d;
+        for (idx_t i = j + 1; i < dof; ++i) {
+            double s = G[i * dof + j];
+            for (idx_t k = 0; k < j; ++k) s -= G[i * dof + k] * G[j * dof + k];
+            G[i * dof + j] = s / d;
+        }
+    }
+    return 1;
+}
+
+/* x = G^-1 b from the factor of cholesky (two triangular solves). */
+static void cholesky_solve(const double *G, idx_t dof, const double *b, double *x)
+{
+    for (idx_t i = 0; i < dof; ++i) {
+        double s = b[i];
+        for (idx_t k = 0; k < i; ++k) s -= G[i * dof + k] * x[k];
+        x[i] = s / G[i * dof + i];
+    }
+    for (idx_t i = dof - 1; i >= 0; --i) {
+        double s = x[i];
+        for (idx_t k = i + 1; k < dof; ++k) s -= G[k * dof + i] * x[k];
+        x[i] = s / G[i * dof + i];
     }
 }
 
@@ -189,30 +234,75 @@ int64_t gp_geodesic_acceleration(idx_t N, idx_t dof, const double *X, const doub
             for (int e = 0; e < 16; ++e) s += mask[e] * Y[16 * i + e] * H[e];
             b[i] = -s;
         }
-        /* Cholesky G = L L^T in place (lower triangle), then two triangular solves */
-        for (idx_t j = 0; j < dof; ++j) {
-            double d = G[j * dof + j];
-            for (idx_t k = 0; k < j; ++k) d -= G[j * dof + k] * G[j * dof + k];
-            if (!(d > 0.0) || !isfinite(d)) return n + 1;
-            d = sqrt(d);
-            G[j * dof + j] = d;
-            for (idx_t i = j + 1; i < dof; ++i) {
-                double s = G[i * dof + j];
-                for (idx_t k = 0; k < j; ++k) s -= G[i * dof + k] * G[j * dof + k];
-                G[i * dof + j] = s / d;
+        if (!cholesky(G, dof)) return n + 1;
+        cholesky_solve(G, dof, b, a + n * dof);
+    }
+    return 0;
+}
+
+/* The geodesic acceleration q'' and its s-derivative q''' (core.geodesic.GeodesicEquations.jerk),
+ * each (N, dof) into a and jerk, from X, T, v, mask and eps as gp_geodesic_acceleration, by the
+ * same terms as its numpy code: G q''' = -(<D_k, f''>_W + <Y_k, 3 sum_j D_j a_j + T3>_W) with
+ * D_k = (C_k X_k + X_k (C_n - C_k)) T, f'' = sum_k Y_k a_k + H, H = 2 c2 T, T3 = 6 c3 T (c1, c2,
+ * c3 the Taylor coefficients of the product of the joints' exponentials, kinematics.taylor3).
+ * scratch: dof (50 + dof) doubles. Returns 0, or 1 + the first sample whose G is not numerically
+ * positive definite (its outputs from there on are not written). */
+int64_t gp_geodesic_jerk(idx_t N, idx_t dof, const double *X, const double *T, const double *v,
+                         const double *mask, double eps, double *a, double *jerk, double *scratch)
+{
+    double *Y = scratch, *Cs = Y + 16 * dof, *D = Cs + 16 * dof, *G = D + 16 * dof, *b = G + dof * dof;
+    double *r = b + dof;
+    for (idx_t n = 0; n < N; ++n) {
+        const double *Xn = X + n * dof * 16, *Tn = T + n * 16, *vn = v + n * dof;
+        for (idx_t k = 0; k < dof; ++k) mul4(Xn + 16 * k, Tn, Y + 16 * k);
+        for (idx_t i = 0; i < dof; ++i)
+            for (idx_t j = 0; j <= i; ++j) {
+                double g = 0.0;
+                for (int e = 0; e < 16; ++e) g += mask[e] * Y[16 * i + e] * Y[16 * j + e];
+                G[i * dof + j] = G[j * dof + i] = g + (i == j ? eps : 0.0);
             }
+        double c1[16] = {0}, c2[16] = {0}, c3[16] = {0}, C[16] = {0}, W[16], W2[16], P[16], Q[16];
+        for (idx_t k = 0; k < dof; ++k) {
+            for (int e = 0; e < 16; ++e) { W[e] = Xn[16 * k + e] * vn[k]; C[e] += W[e]; Cs[16 * k + e] = C[e]; }
+            mul4(W, W, W2);
+            mul4(c2, W, P);                   /* c3 += c2 W + c1 W^2 / 2 + W^3 / 6 */
+            for (int e = 0; e < 16; ++e) c3[e] += P[e];
+            mul4(c1, W2, P);
+            mul4(W2, W, Q);
+            for (int e = 0; e < 16; ++e) c3[e] += P[e] / 2.0 + Q[e] / 6.0;
+            mul4(c1, W, P);                   /* c2 += c1 W + W^2 / 2 */
+            for (int e = 0; e < 16; ++e) { c2[e] += P[e] + W2[e] / 2.0; c1[e] += W[e]; }
         }
-        double *an = a + n * dof;
+        double H[16], T3[16], Da[16] = {0}, F[16];
+        mul4(c2, Tn, H);
+        mul4(c3, Tn, T3);
+        for (int e = 0; e < 16; ++e) { H[e] *= 2.0; T3[e] *= 6.0; }
         for (idx_t i = 0; i < dof; ++i) {
-            double s = b[i];
-            for (idx_t k = 0; k < i; ++k) s -= G[i * dof + k] * an[k];
-            an[i] = s / G[i * dof + i];
+            double s = 0.0;
+            for (int e = 0; e < 16; ++e) s += mask[e] * Y[16 * i + e] * H[e];
+            b[i] = -s;
         }
-        for (idx_t i = dof - 1; i >= 0; --i) {
-            double s = an[i];
-            for (idx_t k = i + 1; k < dof; ++k) s -= G[k * dof + i] * an[k];
-            an[i] = s / G[i * dof + i];
+        if (!cholesky(G, dof)) return n + 1;
+        double *an = a + n * dof;
+        cholesky_solve(G, dof, b, an);
+        for (int e = 0; e < 16; ++e) F[e] = H[e];
+        for (idx_t k = 0; k < dof; ++k) {       /* D_k = (C_k X_k + X_k (C_n - C_k)) T */
+            const double *Ck = Cs + 16 * k, *Cn = Cs + 16 * (dof - 1), *Xk = Xn + 16 * k;
+            double R[16];
+            mul4(Ck, Xk, P);
+            for (int e = 0; e < 16; ++e) R[e] = Cn[e] - Ck[e];
+            mul4(Xk, R, Q);
+            for (int e = 0; e < 16; ++e) P[e] += Q[e];
+            mul4(P, Tn, D + 16 * k);
+            for (int e = 0; e < 16; ++e) { Da[e] += D[16 * k + e] * an[k]; F[e] += Y[16 * k + e] * an[k]; }
         }
+        for (idx_t k = 0; k < dof; ++k) {
+            double s = 0.0;
+            for (int e = 0; e < 16; ++e)
+                s += D[16 * k + e] * (F[e] * mask[e]) + mask[e] * Y[16 * k + e] * (3.0 * Da[e] + T3[e]);
+            r[k] = -s;
+        }
+        cholesky_solve(G, dof, r, jerk + n * dof);
     }
     return 0;
 }

@@ -440,3 +440,109 @@ void gp_topp_rows(idx_t n, idx_t dof, const double *s, const double *aL, const d
         st[k] = stop[k] ? 0.0 : nmax(v, 0.0);
     }
 }
+
+/* Sorted, each once (checks.distinct_times), in place, of n values made of sorted runs already
+ * merged (round-off may leave neighbours out of order: an insertion sort puts them back). Returns
+ * the count. */
+static idx_t sort_distinct(double *a, idx_t n)
+{
+    for (idx_t i = 1; i < n; ++i) {
+        const double x = a[i];
+        idx_t j = i;
+        while (j > 0 && a[j - 1] > x) { a[j] = a[j - 1]; --j; }
+        a[j] = x;
+    }
+    idx_t k = 0;
+    for (idx_t i = 0; i < n; ++i)
+        if (k == 0 || a[i] > a[k - 1]) a[k++] = a[i];
+    return k;
+}
+
+/* a (na,) and b (nb,), both sorted, merged into out (ties: a first). Returns na + nb. */
+static idx_t merge(const double *a, idx_t na, const double *b, idx_t nb, double *out)
+{
+    idx_t i = 0, j = 0, k = 0;
+    while (i < na && j < nb) out[k++] = (b[j] < a[i]) ? b[j++] : a[i++];
+    while (i < na) out[k++] = a[i++];
+    while (j < nb) out[k++] = b[j++];
+    return k;
+}
+
+/* np.interp(x, xp, fp) for xp (n >= 2,) sorted (ties allowed): numpy's cases and formula. */
+static double interp(double x, const double *xp, const double *fp, idx_t n, idx_t *hint)
+{
+    if (isnan(x)) return x;
+    if (x < xp[0]) return fp[0];
+    if (x >= xp[n - 1]) return fp[n - 1];
+    const idx_t j = upper_hint(xp, n, x, hint) - 1;       /* xp[j] <= x < xp[j + 1] */
+    if (x == xp[j]) return fp[j];
+    const double slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j]);
+    double r = slope * (x - xp[j]) + fp[j];
+    if (isnan(r)) {
+        r = slope * (x - xp[j + 1]) + fp[j + 1];
+        if (isnan(r) && fp[j] == fp[j + 1]) r = fp[j];
+    }
+    return r;
+}
+
+/* The width search's check grid of a box-filtered law (jerk._Checker._dense with full=False), the
+ * law there and its ratios to the limits. The grid: m uniform times on [0, duration]; the times
+ * at which the law passes us (n_us,) (BoxLaw.times_at); the middles of the gaps between its jerk
+ * events (BoxLaw.jerk_events), evenly strided to at most max_inside; sorted, each once. The law's
+ * tables as gp_box_evaluate, the path's and the limits as gp_hermite_ratios (with the jerk).
+ * scratch: 6 K + 5 L + 3 + 2 cap doubles (K = first[L] steps, cap = m + n_us + max_inside).
+ * out (8, cap): rows t, s, sd, sdd, sddd, rv, ra, rj. Returns the number of samples. */
+idx_t gp_box_search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside,
+                         idx_t L, const double *offs, const double *width, const double *ends,
+                         const idx_t *first, const double *t0, const double *s0, const double *v0,
+                         const double *u, const double *S1, idx_t n, const double *nodes, idx_t dof,
+                         const double *coef, const double *coef3, const double *inv_vmax,
+                         const double *inv_amax, const double *inv_jmax, double *scratch, double *out)
+{
+    const idx_t K = first[L], cap = m + n_us + max_inside;
+    const double duration = offs[L];
+    double *ev = scratch, *A = ev + 2 * K + 3 * L + 1, *B = A + K + 1, *xp = B + K + 1, *fp = xp + K + L;
+    double *grid = fp + K + L, *tmp = grid + cap;
+    /* the jerk events: per piece s*'s step starts and end, and the same delayed by the window */
+    idx_t ne = 0;
+    for (idx_t p = 0; p < L; ++p) {
+        const idx_t f = first[p], np1 = first[p + 1] - f + 1;
+        for (idx_t k = 0; k < np1; ++k) {
+            A[k] = offs[p] + (k < np1 - 1 ? t0[f + k] : ends[p]);
+            B[k] = A[k] + width[p];
+        }
+        ev[ne++] = offs[p];
+        ne += merge(A, np1, B, np1, ev + ne);
+    }
+    ev[ne++] = offs[L];
+    ne = sort_distinct(ev, ne);
+    /* the grid: uniform times, then the times at us, then the middles of the events' gaps */
+    const double step = duration / (double)(m - 1);
+    for (idx_t i = 0; i < m; ++i) grid[i] = (double)i * step + 0.0;
+    grid[m - 1] = duration;
+    idx_t nx = 0;
+    for (idx_t p = 0; p < L; ++p) {
+        const idx_t f = first[p], np1 = first[p + 1] - f + 1;
+        const double t_shift = offs[p] + 0.5 * width[p], s_start = ends[3 * L + p];
+        for (idx_t k = 0; k < np1; ++k, ++nx) {
+            xp[nx] = s_start + (k < np1 - 1 ? s0[f + k] : ends[L + p]);
+            fp[nx] = t_shift + (k < np1 - 1 ? t0[f + k] : ends[p]);
+        }
+    }
+    idx_t hint = 0;
+    double *at = grid + m;
+    for (idx_t i = 0; i < n_us; ++i) at[i] = interp(us[i], xp, fp, nx, &hint);
+    idx_t gaps = ne - 1 > 0 ? ne - 1 : 0, stride = (gaps + max_inside - 1) / max_inside, ni = 0;
+    if (stride < 1) stride = 1;
+    double *inside = at + n_us;
+    for (idx_t k = 0; k < gaps; k += stride) inside[ni++] = ev[k] + 0.5 * (ev[k + 1] - ev[k]);
+    idx_t M = merge(grid, m, at, n_us, tmp);
+    M = merge(tmp, M, inside, ni, out);
+    M = sort_distinct(out, M);
+    double *row[8];
+    for (int r = 0; r < 8; ++r) row[r] = out + r * cap;
+    gp_box_evaluate(M, row[0], L, offs, width, ends, first, t0, s0, v0, u, S1, row[1], row[2], row[3], row[4]);
+    gp_hermite_ratios(M, row[1], row[2], row[3], row[4], n, nodes, dof, coef, coef3, inv_vmax, inv_amax, inv_jmax,
+                      row[5], row[6], row[7]);
+    return M;
+}

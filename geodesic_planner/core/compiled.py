@@ -21,9 +21,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['LIB', 'REASON', 'Pinned', 'active', 'f64', 'frames', 'generators', 'geodesic_acceleration', 'jacobian_rate',
-           'numpy_only',
-           'polynomials']
+__all__ = ['LIB', 'REASON', 'Pinned', 'active', 'f64', 'frames', 'generators', 'geodesic_acceleration', 'geodesic_jerk',
+           'jacobian_rate', 'numpy_only', 'polynomials']
 
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
@@ -35,6 +34,7 @@ SIGNATURES: dict[str, list[Any]] = {
     'gp_polynomials': [_I, _P, _I, _P, _P, _I, _I, _P],
     'gp_jacobian_rate': [_I, _I, _P, _P, _P, _P],
     'gp_geodesic_acceleration': [_I, _I, _P, _P, _P, _P, _D, _P, _P],
+    'gp_geodesic_jerk': [_I, _I, _P, _P, _P, _P, _D, _P, _P, _P],
     'gp_build_piecewise': [_P, _P, _I, _P, _D, _D, _P, _P, _P, _P, _P, _P, _P],
     'gp_refine': [_I, _I, _I] + [_P] * 11,
     'gp_hermite_coef': [_I, _I] + [_P] * 8,
@@ -45,6 +45,7 @@ SIGNATURES: dict[str, list[Any]] = {
     'gp_backward_pass': [_I, _I, _P, _P, _P, _P],
     'gp_forward_pass': [_I, _I, _P, _P, _P, _P, _P],
     'gp_topp_rows': [_I, _I] + [_P] * 15,
+    'gp_box_search_grid': [_I, _I, _P, _I, _I] + [_P] * 9 + [_I, _P, _I] + [_P] * 7,
 }
 
 
@@ -61,6 +62,8 @@ def _load() -> tuple[ctypes.CDLL | None, str]:
         fn.argtypes = args
         fn.restype = None
     lib.gp_geodesic_acceleration.restype = _I
+    lib.gp_geodesic_jerk.restype = _I
+    lib.gp_box_search_grid.restype = _I
     return lib, 'on'
 
 
@@ -155,6 +158,21 @@ def geodesic_acceleration(X: np.ndarray, T: np.ndarray, v: np.ndarray, mask: np.
     bad = LIB.gp_geodesic_acceleration(N, dof, X.ctypes.data, T.ctypes.data, v.ctypes.data, mask.ctypes.data,
                                        float(epsilon), a.ctypes.data, scratch.ctypes.data)
     return None if bad else a
+
+
+def geodesic_jerk(X: np.ndarray, T: np.ndarray, v: np.ndarray, mask: np.ndarray, epsilon: float
+                  ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The geodesic acceleration and its s-derivative, each (N, dof), of
+    :meth:`.geodesic.GeodesicEquations.jerk`, from the same inputs as :func:`geodesic_acceleration`
+    (None likewise where G is not numerically positive definite)."""
+    assert LIB is not None
+    X, T, v, mask = f64(X), f64(T), f64(v), f64(mask)
+    N, dof = v.shape
+    out = np.empty((2, N, dof))
+    scratch = np.empty(dof * (50 + dof))
+    bad = LIB.gp_geodesic_jerk(N, dof, X.ctypes.data, T.ctypes.data, v.ctypes.data, mask.ctypes.data, float(epsilon),
+                               out.ctypes.data, out.ctypes.data + 8 * N * dof, scratch.ctypes.data)
+    return None if bad else (out[0], out[1])
 
 
 def polynomials(tables: Pinned, times: np.ndarray, order: int) -> tuple[np.ndarray, ...]:

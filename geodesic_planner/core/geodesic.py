@@ -138,14 +138,13 @@ class GeodesicEquations:
         of the pose along v (Taylor coefficients of the product of joint exponentials). The same
         value as ``∂a/∂q q' + ∂a/∂q' q''`` from :meth:`evaluate`, at a fraction of its cost.
 
-        Args:
-            q, v: joint positions and velocities w.r.t. s, shape (N, dof).
-        Returns:
-            (a, dddq): q'' and q''' w.r.t. s, each (N, dof).
-        Raises:
-            SingularMetricError: G is singular at one of the configurations.
+        Takes q, v (N, dof), w.r.t. s; returns (a, dddq): q'' and q''' w.r.t. s, each (N, dof),
+        compiled, or numpy where G is not positive definite (it raises SingularMetricError).
         """
-        return in_chunks(self._jerk, np.ascontiguousarray(q, dtype=float), np.asarray(v, dtype=float))
+        q, v = np.ascontiguousarray(q, dtype=float), np.asarray(v, dtype=float)
+        hit = compiled.geodesic_jerk(*self._generators(q), v, self._mask, self.metric.epsilon) \
+            if compiled.active() else None
+        return in_chunks(self._jerk, q, v) if hit is None else hit
 
     def _jerk(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         q, X, T, Y, YO, G, W, C = self._terms(q, v)

@@ -57,6 +57,7 @@ SEARCH_SAMPLES = 250
 #: Width factors of the coarse scan (times the reference width), then golden-section steps.
 WIDTH_SCAN = (0.5, 0.71, 1.0, 1.41, 2.0, 2.83, 4.0)
 GOLDEN_STEPS = 5
+_UNIFORM_S = kernels.Pinned(UNIFORM_S)      # its address, taken once
 #: Acceleration scales of the optimal pass tried in order when the jerk binds (over LOOSE times
 #: the v/a optimum), until one does not shorten the law.
 ACCEL_SCALES = (0.7, 0.5, 0.35, 0.25)
@@ -129,8 +130,7 @@ class _Checker:
         ps, lim = self.ps, self.limits
         vmax, amax = lim.max_velocity, lim.max_acceleration
         jmax = lim.max_jerk if lim.max_jerk is not None else np.full(vmax.size, np.inf)
-        m = max(10, int(self.check_samples) if self.check_samples is not None
-                else max(CHECK_SAMPLES, 5 * ps.s.size) if full else SEARCH_SAMPLES)
+        m = self._samples(full)
         ev = law.jerk_events()
         gap = np.diff(ev)
         keep = gap > 0
@@ -177,11 +177,23 @@ class _Checker:
         self._last[:] = [law, full, out]
         return out
 
+    def _samples(self, full: bool) -> int:
+        """Uniform time samples of the dense grid (``full``) or of the search grid."""
+        return max(10, int(self.check_samples) if self.check_samples is not None
+                   else max(CHECK_SAMPLES, 5 * self.ps.s.size) if full else SEARCH_SAMPLES)
+
     def ratios(self, law: BoxLaw, exact: bool = True) -> tuple[float, float, float]:
         """Largest |v| / vmax, |a| / amax (tool speed included in v) and |j| / jmax of ``law``;
         ``exact``: see :meth:`stretch`."""
         ps = self.ps
-        t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need = self._dense(law, full=exact)
+        if not exact and kernels.active() and math.isfinite(law.duration) and law.duration > 0.0:
+            # the search grid, the law there and its ratios in one compiled call (as _dense)
+            t, s, sd, sdd, sddd, rv_t, ra_t, rj_t = kernels.box_search(
+                law.tables, ps.kernel_tables3, self._limits, _UNIFORM_S, self._samples(False), 2 * SEARCH_SAMPLES)
+            if self.tool is not None:
+                rv_t = np.maximum(rv_t, self.tool.ratios(s, sd))
+        else:
+            t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need = self._dense(law, full=exact)
         rv, ra, rj = float(rv_t.max()), float(ra_t.max()), float(rj_t.max())
         # The samples closest to a limit, with the exact path derivatives (the law kept; the
         # search compares widths on the interpolated derivatives alone).

@@ -19,8 +19,8 @@ from ..core.compiled import LIB as _LIB
 from ..core.compiled import REASON, Pinned, active, numpy_only
 from ..core.compiled import f64 as _f64
 
-__all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_tables', 'build_piecewise', 'evaluate',
-           'forward_pass', 'hermite_coef', 'hermite_ratios', 'limit_tables', 'numpy_only', 'path_tables',
+__all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_search', 'box_tables', 'build_piecewise',
+           'evaluate', 'forward_pass', 'hermite_coef', 'hermite_ratios', 'limit_tables', 'numpy_only', 'path_tables',
            'piecewise_tables', 'ratios', 'refine', 'suspects']
 
 
@@ -111,6 +111,26 @@ def box_tables(t_offsets: np.ndarray, width: np.ndarray, stars: Pinned) -> LawTa
     assert _LIB is not None
     p = Pinned(t_offsets, width)
     return LawTables(_LIB.gp_box_evaluate, (width.size, *p.ptrs, *stars.ptrs), (p, stars))
+
+
+def box_search(law: LawTables, path: Pinned, limits: Pinned, us: Pinned, m: int, max_inside: int
+               ) -> tuple[np.ndarray, ...]:
+    """The width search's check of a box-filtered law (``law``: its :func:`box_tables`) in one
+    call: its grid (m uniform times, the times at which it passes ``us`` (one array), the middles
+    of its jerk events' gaps, at most ``max_inside``; sorted, each once), the law there and the
+    ratios of :func:`ratios` with the jerk: t, s, sd, sdd, sddd, rv, ra, rj, each (M,)."""
+    assert _LIB is not None
+    L, stars = law.const[0], law.keep[1]      # type: ignore[index]
+    first, u = stars.arrays[1], us.arrays[0]
+    c = path.arrays[1]
+    assert first is not None and u is not None and c is not None
+    cap = m + u.size + max_inside
+    scratch = np.empty(6 * int(first[-1]) + 5 * L + 3 + 2 * cap)
+    out = np.empty((8, cap))
+    nodes, coef, coef3 = path.ptrs
+    M = _LIB.gp_box_search_grid(m, u.size, us.ptrs[0], max_inside, *law.const, c.shape[2], nodes, c.shape[1], coef,
+                                coef3, *limits.ptrs, scratch.ctypes.data, out.ctypes.data)
+    return tuple(out[:, :M])
 
 
 def path_tables(nodes: np.ndarray, coef: np.ndarray, coef3: np.ndarray | None = None) -> Pinned:

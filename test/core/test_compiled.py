@@ -113,6 +113,29 @@ def test_geodesic_acceleration_matches_numpy(name, metric):
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
 
 
+@pytest.mark.parametrize('name,metric', [('ur5e', {}), ('panda', {'epsilon': 1e-3}), ('rrpp', {}), ('planar_3r', {})])
+def test_geodesic_jerk_matches_numpy_and_the_acceleration_s_derivative(name, metric):
+    from geodesic_planner import load_robot
+    from geodesic_planner.core.geodesic import GeodesicEquations
+    from geodesic_planner.core.metric import Metric
+    robot = load_robot(name)
+    rng = np.random.default_rng(17)
+    lo, hi = np.maximum(robot.lower, -2.0), np.minimum(robot.upper, 2.0)
+    q = rng.uniform(lo, hi, (100, robot.dof))
+    v = rng.normal(size=(100, robot.dof))
+    eq = GeodesicEquations(robot, Metric(**metric))
+    a, j = eq.jerk(q, v)
+    with compiled.numpy_only():
+        a0, j0 = GeodesicEquations(robot, Metric(**metric)).jerk(q, v)
+    np.testing.assert_allclose(a, a0, rtol=1e-9, atol=1e-9 * np.abs(a0).max())
+    np.testing.assert_allclose(j, j0, rtol=1e-9, atol=1e-9 * np.abs(j0).max())
+    # independent: q''' = d/ds a(q(s), q'(s)) = da/dq q' + da/dq' q'', central differences of the
+    # (compiled) acceleration along (q + h q', q' + h q'')
+    h = 1e-5
+    fd = (eq.acceleration(q + h * v, v + h * a) - eq.acceleration(q - h * v, v - h * a)) / (2 * h)
+    np.testing.assert_allclose(j, fd, rtol=1e-5, atol=1e-5 * np.abs(j).max())
+
+
 def test_singular_metric_is_named_as_before():
     # the position metric on a 6-joint arm leaves the orientation free: G is singular, and the
     # compiled path hands over to numpy, which raises the same error

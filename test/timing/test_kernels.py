@@ -161,6 +161,51 @@ def test_real_arm_laws_are_the_same_with_numpy():
     _same_law(seq, max_jerk=50.0)
 
 
+def _search_checks(path, monkeypatch, **kw):
+    """(checker, law) of every width-search check while ``path`` is timed with ``kw``."""
+    from geodesic_planner.timing import jerk
+    seen, ratios = [], jerk._Checker.ratios
+
+    def spy(checker, law, exact=True):
+        if not exact:
+            seen.append((checker, law))
+        return ratios(checker, law, exact)
+    monkeypatch.setattr(jerk._Checker, 'ratios', spy)
+    time_parameterize(path, **kw)
+    monkeypatch.setattr(jerk._Checker, 'ratios', ratios)
+    return seen
+
+
+def test_search_grid_is_the_numpy_grid(monkeypatch):
+    # gp_box_search_grid builds the width search's grid itself (uniform times, np.interp of the
+    # s-uniform samples, the middles of the jerk events' gaps, sorted and each once): the same
+    # times, bit for bit, as _Checker._dense(full=False), and the same law and ratios there
+    from geodesic_planner.timing import jerk
+    robot, planner, q_a, T_a, T_b = _ur5e_line_path()
+    poses = [T_a, T_b, T_a.copy()]
+    poses[2][:3, 3] += [0.05, 0.1, -0.05]
+    seq = planner.plan_through(poses, start_joints=q_a, blend_radius=0.02)
+    cases = [(path, {'max_jerk': j}) for _, path, j in _law_cases()] + [(seq, {'max_jerk': 50.0})]
+    checked = 0
+    for path, kw in cases:
+        seen = _search_checks(path, monkeypatch, **kw)
+        assert seen
+        for checker, law in seen[::3]:
+            got = kernels.box_search(law.tables, checker.ps.kernel_tables3, checker._limits, jerk._UNIFORM_S,
+                                     checker._samples(False), 2 * jerk.SEARCH_SAMPLES)
+            checker._last.clear()
+            with kernels.numpy_only():
+                t, cols, rv, ra, rj, _ = checker._dense(law, full=False)
+            checker._last.clear()
+            np.testing.assert_array_equal(got[0], t)
+            for g, w in zip(got[1:5], cols):
+                np.testing.assert_array_equal(g, w)
+            for g, w in zip(got[5:], (rv, ra, rj)):       # round-off (limits as reciprocals)
+                np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-14)
+            checked += 1
+    assert checked >= 10
+
+
 def _topp_cases():
     from timing_paths import PolyPath
     still = PolyPath([[0.1, 0.0, 0.2], [1.0, 0.0, -0.5], [0.5, 0.0, 1.0]], vmax=(1.0, 1.0, 0.7), amax=2.0)
