@@ -22,6 +22,8 @@
  *   gp_topp_rows           topp: the passes' constraint rows and static bounds
  *   gp_box_search_grid     jerk._Checker._dense(full=False): the width search's check grid of a
  *                          box-filtered law, the law there and its ratios, in one call
+ *   gp_box_search_max      the same check's largest ratios only, from the window, stopping early
+ *                          once they exceed bounds (jerk._best_width)
  *
  * This file holds the core's kernels and the module init, which only makes the extension importable
  * (so that setuptools builds it with the package; it defines no Python functions); the time laws'

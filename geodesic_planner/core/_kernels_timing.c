@@ -485,19 +485,14 @@ static double interp(double x, const double *xp, const double *fp, idx_t n, idx_
     return r;
 }
 
-/* The width search's check grid of a box-filtered law (jerk._Checker._dense with full=False), the
- * law there and its ratios to the limits. The grid: m uniform times on [0, duration]; the times
- * at which the law passes us (n_us,) (BoxLaw.times_at); the middles of the gaps between its jerk
- * events (BoxLaw.jerk_events), evenly strided to at most max_inside; sorted, each once. The law's
- * tables as gp_box_evaluate, the path's and the limits as gp_hermite_ratios (with the jerk).
- * scratch: 6 K + 5 L + 3 + 2 cap doubles (K = first[L] steps, cap = m + n_us + max_inside).
- * out (8, cap): rows t, s, sd, sdd, sddd, rv, ra, rj. Returns the number of samples. */
-idx_t gp_box_search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside,
-                         idx_t L, const double *offs, const double *width, const double *ends,
-                         const idx_t *first, const double *t0, const double *s0, const double *v0,
-                         const double *u, const double *S1, idx_t n, const double *nodes, idx_t dof,
-                         const double *coef, const double *coef3, const double *inv_vmax,
-                         const double *inv_amax, const double *inv_jmax, double *scratch, double *out)
+/* The width search's check grid of a box-filtered law (jerk._Checker._dense with full=False): m
+ * uniform times on [0, duration]; the times at which the law passes us (n_us,) (BoxLaw.times_at);
+ * the middles of the gaps between its jerk events (BoxLaw.jerk_events), evenly strided to at most
+ * max_inside; sorted, each once, into t (cap = m + n_us + max_inside). The law's tables as
+ * gp_box_evaluate. scratch: 6 K + 5 L + 3 + 2 cap doubles (K = first[L] steps). Returns the count. */
+static idx_t search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside, idx_t L, const double *offs,
+                         const double *width, const double *ends, const idx_t *first, const double *t0,
+                         const double *s0, double *scratch, double *t)
 {
     const idx_t K = first[L], cap = m + n_us + max_inside;
     const double duration = offs[L];
@@ -537,12 +532,77 @@ idx_t gp_box_search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside
     double *inside = at + n_us;
     for (idx_t k = 0; k < gaps; k += stride) inside[ni++] = ev[k] + 0.5 * (ev[k + 1] - ev[k]);
     idx_t M = merge(grid, m, at, n_us, tmp);
-    M = merge(tmp, M, inside, ni, out);
-    M = sort_distinct(out, M);
+    M = merge(tmp, M, inside, ni, t);
+    return sort_distinct(t, M);
+}
+
+/* search_grid of a box-filtered law, the law there and its ratios to the limits. The law's tables
+ * as gp_box_evaluate, the path's and the limits as gp_hermite_ratios (with the jerk); scratch as
+ * search_grid. out (8, cap): rows t, s, sd, sdd, sddd, rv, ra, rj. Returns the number of samples. */
+idx_t gp_box_search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside,
+                         idx_t L, const double *offs, const double *width, const double *ends,
+                         const idx_t *first, const double *t0, const double *s0, const double *v0,
+                         const double *u, const double *S1, idx_t n, const double *nodes, idx_t dof,
+                         const double *coef, const double *coef3, const double *inv_vmax,
+                         const double *inv_amax, const double *inv_jmax, double *scratch, double *out)
+{
+    const idx_t cap = m + n_us + max_inside;
+    const idx_t M = search_grid(m, n_us, us, max_inside, L, offs, width, ends, first, t0, s0, scratch, out);
     double *row[8];
     for (int r = 0; r < 8; ++r) row[r] = out + r * cap;
     gp_box_evaluate(M, row[0], L, offs, width, ends, first, t0, s0, v0, u, S1, row[1], row[2], row[3], row[4]);
     gp_hermite_ratios(M, row[1], row[2], row[3], row[4], n, nodes, dof, coef, coef3, inv_vmax, inv_amax, inv_jmax,
                       row[5], row[6], row[7]);
     return M;
+}
+
+/* The width search's check of the box-filtered law of window width (L,) on the pieces' s* (ends,
+ * first, t0 ... S1 as gp_box_evaluate): its offsets (offs[i + 1] = offs[i] + (T*_i + width_i), as
+ * build_box_law), then over search_grid the largest ratios to the limits, in blocks of samples.
+ * The blocks are taken from the one at the fraction origin of the duration on, then from the start
+ * (where the last check peaked: a longer law is seen to be longer sooner). Stops after the first
+ * block where one of them exceeds its bound (bound (3,): bounds on rv, ra, rj; INFINITY: never).
+ * out (5,): largest rv, ra, rj (over the samples seen), duration, the fraction of the duration at
+ * which max(rv, sqrt(ra), cbrt(rj)) peaked. scratch: L + 1 + search_grid's + 3 cap doubles (t last).
+ * Returns 1 when it stopped early, else 0. */
+#define SEARCH_BLOCK 64
+int64_t gp_box_search_max(idx_t m, idx_t n_us, const double *us, idx_t max_inside, idx_t L, const double *width,
+                          const double *ends, const idx_t *first, const double *t0, const double *s0,
+                          const double *v0, const double *u, const double *S1, idx_t n, const double *nodes,
+                          idx_t dof, const double *coef, const double *coef3, const double *inv_vmax,
+                          const double *inv_amax, const double *inv_jmax, const double *bound, double origin,
+                          double *scratch, double *out)
+{
+    const idx_t K = first[L], cap = m + n_us + max_inside;
+    double *offs = scratch, *grid_scratch = offs + L + 1;
+    double *t = grid_scratch + 6 * K + 5 * L + 3 + 2 * cap;
+    offs[0] = 0.0;
+    for (idx_t p = 0; p < L; ++p) offs[p + 1] = offs[p] + (ends[p] + width[p]);
+    const idx_t M = search_grid(m, n_us, us, max_inside, L, offs, width, ends, first, t0, s0, grid_scratch, t);
+    double rv = -INFINITY, ra = -INFINITY, rj = -INFINITY;
+    idx_t peak[3] = {0, 0, 0}, seen = 0;
+    int64_t stopped = 0;
+    const idx_t blocks = (M + SEARCH_BLOCK - 1) / SEARCH_BLOCK;
+    const idx_t first_block = clampi(lower(t, M, origin * offs[L]) / SEARCH_BLOCK, 0, blocks - 1);
+    for (idx_t q = 0; q < blocks; ++q) {
+        const idx_t i = ((first_block + q) % blocks) * SEARCH_BLOCK;
+        const idx_t b = M - i < SEARCH_BLOCK ? M - i : SEARCH_BLOCK;
+        double s[SEARCH_BLOCK], sd[SEARCH_BLOCK], sdd[SEARCH_BLOCK], sddd[SEARCH_BLOCK];
+        double v[SEARCH_BLOCK], a[SEARCH_BLOCK], j[SEARCH_BLOCK];
+        gp_box_evaluate(b, t + i, L, offs, width, ends, first, t0, s0, v0, u, S1, s, sd, sdd, sddd);
+        gp_hermite_ratios(b, s, sd, sdd, sddd, n, nodes, dof, coef, coef3, inv_vmax, inv_amax, inv_jmax, v, a, j);
+        for (idx_t k = 0; k < b; ++k) {
+            if (!(v[k] <= rv)) { rv = nmax(rv, v[k]); peak[0] = i + k; }
+            if (!(a[k] <= ra)) { ra = nmax(ra, a[k]); peak[1] = i + k; }
+            if (!(j[k] <= rj)) { rj = nmax(rj, j[k]); peak[2] = i + k; }
+        }
+        seen += b;
+        if (rv > bound[0] || ra > bound[1] || rj > bound[2]) { stopped = seen < M; break; }
+    }
+    const double need[3] = {rv, sqrt(ra), cbrt(rj)};
+    int top = 0;
+    for (int r = 1; r < 3; ++r) if (need[r] > need[top]) top = r;
+    out[0] = rv; out[1] = ra; out[2] = rj; out[3] = offs[L];
+    out[4] = M > 0 && offs[L] > 0.0 ? t[peak[top]] / offs[L] : 0.0;
+    return stopped;
 }

@@ -46,6 +46,7 @@ SIGNATURES: dict[str, list[Any]] = {
     'gp_forward_pass': [_I, _I, _P, _P, _P, _P, _P],
     'gp_topp_rows': [_I, _I] + [_P] * 15,
     'gp_box_search_grid': [_I, _I, _P, _I, _I] + [_P] * 9 + [_I, _P, _I] + [_P] * 7,
+    'gp_box_search_max': [_I, _I, _P, _I, _I] + [_P] * 8 + [_I, _P, _I] + [_P] * 6 + [_D, _P, _P],
 }
 
 
@@ -64,6 +65,7 @@ def _load() -> tuple[ctypes.CDLL | None, str]:
     lib.gp_geodesic_acceleration.restype = _I
     lib.gp_geodesic_jerk.restype = _I
     lib.gp_box_search_grid.restype = _I
+    lib.gp_box_search_max.restype = _I
     return lib, 'on'
 
 

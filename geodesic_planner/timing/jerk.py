@@ -98,6 +98,8 @@ class _Checker:
     check_samples: int | None
     # The last law's dense grid (the local passes check a law, then ask where it is over).
     _last: list[object] = field(default_factory=list, repr=False)
+    # Where the last full search check peaked (fraction of its duration): the next check starts there.
+    _peak: list[float] = field(default_factory=lambda: [0.0], repr=False)
 
     def stretch(self, law: BoxLaw, exact: bool = False) -> float:
         """Smallest uniform time stretch (>= 1) keeping ``law`` within 1 - CHECK_MARGIN of every
@@ -106,6 +108,27 @@ class _Checker:
         rv, ra, rj = self.ratios(law, exact)
         target = 1.0 - CHECK_MARGIN
         return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target))
+
+    def search(self, pieces: list[tuple[float, StarPiece]], tables: kernels.Pinned | None, width: np.ndarray,
+               above: float = math.inf) -> tuple[float, float, bool]:
+        """:meth:`stretch` on the search grid of the box law of ``pieces`` with window ``width``
+        (``tables``: their :func:`.box_filter.star_tables`): (stretch, duration, exact). Not exact:
+        the check stopped once stretch x duration was certainly longer than ``above`` (s), and the
+        stretch is a lower bound, with stretch x duration > ``above``."""
+        if kernels.active() and tables is not None and self.tool is None and not self.ps.jumps3.size:
+            target = 1.0 - CHECK_MARGIN
+            t_star = sum(p.t_star for _, p in pieces)
+            # on the stretch: over Lam, stretch x duration > above (duration within round-off of this sum)
+            lam = above / (t_star + float(width.sum())) * (1.0 + 1e-9)
+            rv, ra, rj, duration, peak, stopped = kernels.box_search_max(
+                tables, width, self.ps.kernel_tables3, self._limits, _UNIFORM_S, self._samples(False),
+                2 * SEARCH_SAMPLES, (lam * target, lam**2 * target, lam**3 * target), self._peak[0])
+            if math.isfinite(duration) and duration > 0.0:
+                if not stopped:
+                    self._peak[0] = peak
+                return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target)), duration, not stopped
+        law = build_box_law(pieces, width, tables)
+        return self.stretch(law), law.duration, True
 
     @functools.cached_property
     def _limits(self) -> kernels.Pinned:
@@ -310,6 +333,8 @@ class JerkLimited:
                     fine, vmax * (1.0 - TOPP_MARGIN), beta * amax * (1.0 - TOPP_MARGIN), cap)
                 pieces = star_pieces(fine.s, x)
                 w_ref = _reference_width(fine, x, pieces, jmax)
+                if found is not None and _floor(pieces, w_ref) >= found[0][1] * found[0][0].duration:
+                    break       # this scale's laws are all longer than the one found: unsearched
                 cand = _best_width(pieces, w_ref, checker, start)
                 # the next scale's scan starts from this one's width factor (nearest grid point)
                 c = float(np.median(cand[0].width / w_ref))
@@ -384,19 +409,42 @@ def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[Box
     return best
 
 
+def _floor(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray) -> float:
+    """A lower bound on the duration of every law :func:`_best_width` tries on ``pieces`` (s): each
+    width is at least WIDTH_SCAN[0] w_ref and each stretch at least 1 (round-off aside)."""
+    return (sum(p.t_star for _, p in pieces) + WIDTH_SCAN[0] * float(w_ref.sum())) * (1.0 - 1e-12)
+
+
 def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checker: _Checker,
                 start: int = WIDTH_SCAN.index(1.0)) -> tuple[BoxLaw, float]:
     """The width factor with the shortest checked duration, searched from ``WIDTH_SCAN[start]``:
     (law, its stretch)."""
-    cache: dict[float, tuple[float, BoxLaw, float]] = {}
+    # log c -> (stretch x duration, width, stretch, exact); not exact: a lower bound, longer than
+    # a duration known exactly (the check stopped there; see _Checker.search)
+    cache: dict[float, tuple[float, np.ndarray, float, bool]] = {}
     tables = star_tables(pieces) if kernels.active() else None    # the same s* for every width
 
-    def total(log_c: float) -> float:
-        if log_c not in cache:
-            law = build_box_law(pieces, math.exp(log_c) * w_ref, tables)
-            lam = checker.stretch(law)
-            cache[log_c] = (lam * law.duration, law, lam)
-        return cache[log_c][0]
+    def total(log_c: float, above: float = math.inf) -> float:
+        """The duration of width factor exp(log_c), exact, or any value longer than ``above``."""
+        hit = cache.get(log_c)
+        if hit is None or (not hit[3] and hit[0] <= above):
+            width = math.exp(log_c) * w_ref
+            lam, duration, exact = checker.search(pieces, tables, width, above)
+            hit = cache[log_c] = (lam * duration, width, lam, exact)
+        return hit[0]
+
+    def known(log_c: float) -> float:
+        """The exact duration of exp(log_c) when already checked, else infinity."""
+        hit = cache.get(log_c)
+        return hit[0] if hit is not None and hit[3] else math.inf
+
+    def shorter_or_equal(x: float, y: float) -> bool:
+        """total(x) <= total(y): the one known first, the other only as far as that decides."""
+        if known(y) == math.inf:      # x first, as the comparison reads
+            tx = total(x)
+            return tx <= total(y, above=tx)
+        ty = total(y)
+        return total(x, above=ty) <= ty
 
     # The coarse scan walks from ``start`` towards the smaller durations and stops at the first
     # grid point whose neighbours are both longer (the full scan's choice whenever the durations
@@ -406,7 +454,10 @@ def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checke
     while True:
         checkpoint()
         near = [j for j in (i - 1, i, i + 1) if 0 <= j < len(grid)]
-        j = min(near, key=lambda k: total(grid[k]))
+        best = math.inf
+        for k in near:      # in order; past the shortest so far, a check may stop early
+            best = min(best, total(grid[k], above=best) if known(grid[k]) == math.inf else known(grid[k]))
+        j = min(near, key=lambda k: cache[grid[k]][0])
         if j == i:
             break
         i = j
@@ -415,14 +466,15 @@ def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checke
     a, b = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
     for _ in range(GOLDEN_STEPS):
         checkpoint()
-        if total(a) <= total(b):
+        if shorter_or_equal(a, b):
             hi, b = b, a
             a = hi - ratio * (hi - lo)
         else:
             lo, a = a, b
             b = lo + ratio * (hi - lo)
-    _, law, lam = min(cache.values(), key=lambda item: item[0])
-    return law, lam
+    _, width, lam, exact = min(cache.values(), key=lambda item: item[0])
+    assert exact        # a check stops early only past a shorter, exact duration
+    return build_box_law(pieces, width, tables), lam
 
 
 __all__ = ['JerkLimited', 'cruise_cap']

@@ -19,9 +19,9 @@ from ..core.compiled import LIB as _LIB
 from ..core.compiled import REASON, Pinned, active, numpy_only
 from ..core.compiled import f64 as _f64
 
-__all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_search', 'box_tables', 'build_piecewise',
-           'evaluate', 'forward_pass', 'hermite_coef', 'hermite_ratios', 'limit_tables', 'numpy_only', 'path_tables',
-           'piecewise_tables', 'ratios', 'refine', 'suspects']
+__all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_search', 'box_search_max', 'box_tables',
+           'build_piecewise', 'evaluate', 'forward_pass', 'hermite_coef', 'hermite_ratios', 'limit_tables',
+           'numpy_only', 'path_tables', 'piecewise_tables', 'ratios', 'refine', 'suspects']
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,6 +131,29 @@ def box_search(law: LawTables, path: Pinned, limits: Pinned, us: Pinned, m: int,
     M = _LIB.gp_box_search_grid(m, u.size, us.ptrs[0], max_inside, *law.const, c.shape[2], nodes, c.shape[1], coef,
                                 coef3, *limits.ptrs, scratch.ctypes.data, out.ctypes.data)
     return tuple(out[:, :M])
+
+
+def box_search_max(stars: Pinned, width: np.ndarray, path: Pinned, limits: Pinned, us: Pinned, m: int,
+                   max_inside: int, bound: tuple[float, float, float], origin: float = 0.0
+                   ) -> tuple[float, float, float, float, float, bool]:
+    """The largest ratios of :func:`box_search` for the box-filtered law of window ``width`` (L,) on
+    the pieces ``stars`` (:func:`.box_filter.star_tables`), without building the law: rv, ra, rj,
+    the law's duration, the fraction of it where the speed factor peaked, and whether the check
+    stopped early, after a block of samples where one ratio exceeded its ``bound`` (the maxima then
+    cover only the samples seen; the blocks are taken from the fraction ``origin`` of the duration on)."""
+    assert _LIB is not None
+    first, u = stars.arrays[1], us.arrays[0]
+    c = path.arrays[1]
+    assert first is not None and u is not None and c is not None
+    L, cap = width.size, m + u.size + max_inside
+    width = _f64(width)
+    scratch = np.empty(L + 1 + 6 * int(first[-1]) + 5 * L + 3 + 3 * cap)
+    out = np.array(bound + (0.0, 0.0), dtype=float)      # the bounds in, the maxima and more out
+    nodes, coef, coef3 = path.ptrs
+    stopped = _LIB.gp_box_search_max(m, u.size, us.ptrs[0], max_inside, L, width.ctypes.data, *stars.ptrs,
+                                     c.shape[2], nodes, c.shape[1], coef, coef3, *limits.ptrs, out.ctypes.data,
+                                     float(origin), scratch.ctypes.data, out.ctypes.data)
+    return float(out[0]), float(out[1]), float(out[2]), float(out[3]), float(out[4]), bool(stopped)
 
 
 def path_tables(nodes: np.ndarray, coef: np.ndarray, coef3: np.ndarray | None = None) -> Pinned:

@@ -164,15 +164,15 @@ def test_real_arm_laws_are_the_same_with_numpy():
 def _search_checks(path, monkeypatch, **kw):
     """(checker, law) of every width-search check while ``path`` is timed with ``kw``."""
     from geodesic_planner.timing import jerk
-    seen, ratios = [], jerk._Checker.ratios
+    from geodesic_planner.timing.box_filter import build_box_law
+    seen, search = [], jerk._Checker.search
 
-    def spy(checker, law, exact=True):
-        if not exact:
-            seen.append((checker, law))
-        return ratios(checker, law, exact)
-    monkeypatch.setattr(jerk._Checker, 'ratios', spy)
+    def spy(checker, pieces, tables, width, above=np.inf):
+        seen.append((checker, build_box_law(pieces, width, tables)))
+        return search(checker, pieces, tables, width, above)
+    monkeypatch.setattr(jerk._Checker, 'search', spy)
     time_parameterize(path, **kw)
-    monkeypatch.setattr(jerk._Checker, 'ratios', ratios)
+    monkeypatch.setattr(jerk._Checker, 'search', search)
     return seen
 
 
@@ -303,3 +303,84 @@ def test_hermite_coefficients_match_numpy():
             want = sample_path(path, 30).coef
         assert got.shape == want.shape and got.flags.c_contiguous
         np.testing.assert_array_equal(got, want)       # the same formulas, in the same order
+
+
+def _jerk_law_cases():
+    robot, planner, q_a, T_a, T_b = _ur5e_line_path()
+    path = planner.plan(T_a, T_b, start_joints=q_a)
+    free = time_parameterize(path)
+    peak = np.abs(free.jerk_at_time(np.linspace(0.0, free.duration, 2001))).max(axis=0)
+    return [(name, p, {'max_jerk': j}) for name, p, j in _law_cases()] + [
+        ('ur5e', path, {'max_jerk': 0.3 * peak}), ('ur5e loose', path, {'max_jerk': 3.0 * peak})]
+
+
+def _same_bits(a, b):
+    assert a.duration == b.duration and a.rest_times == b.rest_times
+    np.testing.assert_array_equal(a.scaling.width, b.scaling.width)
+
+
+def test_search_maxima_are_the_search_grid_maxima(monkeypatch):
+    # gp_box_search_max (offsets from the window, blocks from an origin, early stop) against
+    # gp_box_search_grid on the law built in Python: the same duration and maxima, bit for bit
+    from geodesic_planner.timing import jerk
+    from geodesic_planner.timing.box_filter import star_tables
+    checked = 0
+    for _name, path, kw in _jerk_law_cases():
+        for checker, law in _search_checks(path, monkeypatch, **kw)[::4]:
+            pieces = list(zip(law.s_start.tolist(), law.stars))
+            tables = star_tables(pieces)
+            args = (tables, law.width, checker.ps.kernel_tables3, checker._limits, jerk._UNIFORM_S,
+                    checker._samples(False), 2 * jerk.SEARCH_SAMPLES)
+            grid = kernels.box_search(law.tables, *args[2:])
+            want = tuple(float(r.max()) for r in grid[5:])
+            for origin in (0.0, 0.37, 1.0):
+                rv, ra, rj, duration, peak, stopped = kernels.box_search_max(*args, (np.inf,) * 3, origin)
+                assert (rv, ra, rj) == want and duration == law.duration and not stopped
+                need = np.maximum(np.maximum(grid[5], np.sqrt(grid[6])), np.cbrt(grid[7]))
+                at = np.argmin(np.abs(grid[0] - peak * duration))    # a sample where the need peaks (ties: any)
+                assert need[at] == pytest.approx(need.max(), rel=1e-12)
+            # bounds below the maxima: it stops after a block over them, with maxima over it
+            half = tuple(0.5 * w for w in want)
+            rv, ra, rj, _, _, stopped = kernels.box_search_max(*args, half, 0.5)
+            assert stopped and (rv > half[0] or ra > half[1] or rj > half[2])
+            assert rv <= want[0] and ra <= want[1] and rj <= want[2]
+            checked += 1
+    assert checked >= 10
+
+
+@pytest.mark.parametrize('name,path,kw', _jerk_law_cases(), ids=lambda v: v if isinstance(v, str) else '')
+def test_width_search_shortcuts_change_nothing(name, path, kw, monkeypatch):
+    # The two shortcuts of the jerk law's search give the same law, bit for bit, as without them:
+    # checks that stop once longer than a known duration, and acceleration scales left unsearched
+    # when even their shortest conceivable law (width factor WIDTH_SCAN[0], no stretch) is longer.
+    from geodesic_planner.timing import jerk
+    fast = time_parameterize(path, **kw)
+    search = jerk._Checker.search
+    monkeypatch.setattr(jerk._Checker, 'search', lambda self, pieces, tables, width, above=np.inf:
+                        search(self, pieces, tables, width))
+    _same_bits(fast, time_parameterize(path, **kw))
+    monkeypatch.setattr(jerk, '_floor', lambda pieces, w_ref: 0.0)      # every scale searched
+    _same_bits(fast, time_parameterize(path, **kw))
+
+
+def test_scale_floor_is_below_every_law_tried(monkeypatch):
+    # _floor's promise, checked on every width the search tries: stretch x duration >= the floor
+    from geodesic_planner.timing import jerk
+    floors, tried = {}, []
+    best_width, search = jerk._best_width, jerk._Checker.search
+
+    def spy_best(pieces, w_ref, checker, start=3):
+        floors[id(pieces)] = jerk._floor(pieces, w_ref)
+        return best_width(pieces, w_ref, checker, start)
+
+    def spy_search(checker, pieces, tables, width, above=np.inf):
+        lam, duration, exact = search(checker, pieces, tables, width, above)
+        tried.append((floors.get(id(pieces)), lam * duration))
+        return lam, duration, exact
+    monkeypatch.setattr(jerk, '_best_width', spy_best)
+    monkeypatch.setattr(jerk._Checker, 'search', spy_search)
+    for _, path, kw in _jerk_law_cases():
+        for f in (1.0, 0.1):
+            time_parameterize(path, max_jerk=np.asarray(kw['max_jerk']) * f)
+    assert len([t for t in tried if t[0] is not None]) > 50
+    assert all(total >= floor for floor, total in tried if floor is not None)
