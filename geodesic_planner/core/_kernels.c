@@ -20,8 +20,10 @@
  *   gp_backward_pass       topp: hi_k = min(static_k, min_j A_kj hi_{k+1} + B_kj), hi_n = 0
  *   gp_forward_pass        topp: the greedy forward pass
  *   gp_topp_rows           topp: the passes' constraint rows and static bounds
- *   gp_box_search_grid     jerk._Checker._dense(full=False): the width search's check grid of a
+ *   gp_box_search_grid     box_check.BoxCheck._dense: the dense or the width search's check grid of a
  *                          box-filtered law, the law there and its ratios, in one call
+ *   gp_merge_columns       box_check.BoxCheck._dense: two sample blocks merged by time (stable argsort)
+ *   gp_point_ratios        box_check.BoxCheck._max_ratios: the largest ratios of exact samples
  *   gp_box_search_max      the same check's largest ratios only, from the window, stopping early
  *                          once they exceed bounds (jerk._best_width)
  *

@@ -1,5 +1,11 @@
 /* The time laws' compiled kernels (see _kernels.c for the list and the conventions). */
+#include <string.h>
+
 #include "_kernels.h"
+
+void gp_point_ratios(idx_t K, idx_t dof, const double *a, const double *b, const double *c, const double *sd,
+                     const double *sdd, const double *sddd, const double *vmax, const double *amax,
+                     const double *jmax, double *out);
 
 /* q' and q'' (a, b) at r from a step's cubic Hermite coefficients c (rows 0-7 of
  * sampling.PathSamples.coef, `plane` apart), by the Horner steps of its numpy code. */
@@ -485,16 +491,18 @@ static double interp(double x, const double *xp, const double *fp, idx_t n, idx_
     return r;
 }
 
-/* The width search's check grid of a box-filtered law (jerk._Checker._dense with full=False): m
- * uniform times on [0, duration]; the times at which the law passes us (n_us,) (BoxLaw.times_at);
- * the middles of the gaps between its jerk events (BoxLaw.jerk_events), evenly strided to at most
- * max_inside; sorted, each once, into t (cap = m + n_us + max_inside). The law's tables as
- * gp_box_evaluate. scratch: 6 K + 5 L + 3 + 2 cap doubles (K = first[L] steps). Returns the count. */
-static idx_t search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside, idx_t L, const double *offs,
-                         const double *width, const double *ends, const idx_t *first, const double *t0,
-                         const double *s0, double *scratch, double *t)
+/* The dense check grid of a box-filtered law (box_check.BoxCheck._dense): m uniform times on [0,
+ * duration]; the times at which the law passes us (n_us,) (BoxLaw.times_at); inside the gaps
+ * between its jerk events (BoxLaw.jerk_events), with full three samples each (at 0.01, 0.5, 0.99
+ * of the gap), else the middles evenly strided to at most max_inside (the width search's grid);
+ * sorted, each once, into t (cap = m + n_us + (full ? 3 (2 K + 3 L) : max_inside)). The law's
+ * tables as gp_box_evaluate. scratch: 6 K + 5 L + 3 + 2 cap doubles (K = first[L] steps). Returns
+ * the count. */
+static idx_t search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside, idx_t full, idx_t L,
+                         const double *offs, const double *width, const double *ends, const idx_t *first,
+                         const double *t0, const double *s0, double *scratch, double *t)
 {
-    const idx_t K = first[L], cap = m + n_us + max_inside;
+    const idx_t K = first[L], cap = m + n_us + (full ? 3 * (2 * K + 3 * L) : max_inside);
     const double duration = offs[L];
     double *ev = scratch, *A = ev + 2 * K + 3 * L + 1, *B = A + K + 1, *xp = B + K + 1, *fp = xp + K + L;
     double *grid = fp + K + L, *tmp = grid + cap;
@@ -527,10 +535,20 @@ static idx_t search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside
     idx_t hint = 0;
     double *at = grid + m;
     for (idx_t i = 0; i < n_us; ++i) at[i] = interp(us[i], xp, fp, nx, &hint);
-    idx_t gaps = ne - 1 > 0 ? ne - 1 : 0, stride = (gaps + max_inside - 1) / max_inside, ni = 0;
-    if (stride < 1) stride = 1;
+    idx_t gaps = ne - 1 > 0 ? ne - 1 : 0, ni = 0;
     double *inside = at + n_us;
-    for (idx_t k = 0; k < gaps; k += stride) inside[ni++] = ev[k] + 0.5 * (ev[k + 1] - ev[k]);
+    if (full) {
+        for (idx_t k = 0; k < gaps; ++k) {
+            const double g = ev[k + 1] - ev[k];
+            inside[ni++] = ev[k] + 0.01 * g;
+            inside[ni++] = ev[k] + 0.5 * g;
+            inside[ni++] = ev[k] + 0.99 * g;
+        }
+    } else {
+        idx_t stride = (gaps + max_inside - 1) / max_inside;
+        if (stride < 1) stride = 1;
+        for (idx_t k = 0; k < gaps; k += stride) inside[ni++] = ev[k] + 0.5 * (ev[k + 1] - ev[k]);
+    }
     idx_t M = merge(grid, m, at, n_us, tmp);
     M = merge(tmp, M, inside, ni, t);
     return sort_distinct(t, M);
@@ -538,16 +556,17 @@ static idx_t search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside
 
 /* search_grid of a box-filtered law, the law there and its ratios to the limits. The law's tables
  * as gp_box_evaluate, the path's and the limits as gp_hermite_ratios (with the jerk); scratch as
- * search_grid. out (8, cap): rows t, s, sd, sdd, sddd, rv, ra, rj. Returns the number of samples. */
-idx_t gp_box_search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside,
+ * search_grid. out (8 or more, cap): rows t, s, sd, sdd, sddd, rv, ra, rj. Returns the number of
+ * samples. */
+idx_t gp_box_search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside, idx_t full,
                          idx_t L, const double *offs, const double *width, const double *ends,
                          const idx_t *first, const double *t0, const double *s0, const double *v0,
                          const double *u, const double *S1, idx_t n, const double *nodes, idx_t dof,
                          const double *coef, const double *coef3, const double *inv_vmax,
                          const double *inv_amax, const double *inv_jmax, double *scratch, double *out)
 {
-    const idx_t cap = m + n_us + max_inside;
-    const idx_t M = search_grid(m, n_us, us, max_inside, L, offs, width, ends, first, t0, s0, scratch, out);
+    const idx_t K = first[L], cap = m + n_us + (full ? 3 * (2 * K + 3 * L) : max_inside);
+    const idx_t M = search_grid(m, n_us, us, max_inside, full, L, offs, width, ends, first, t0, s0, scratch, out);
     double *row[8];
     for (int r = 0; r < 8; ++r) row[r] = out + r * cap;
     gp_box_evaluate(M, row[0], L, offs, width, ends, first, t0, s0, v0, u, S1, row[1], row[2], row[3], row[4]);
@@ -563,22 +582,28 @@ idx_t gp_box_search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside
  * (where the last check peaked: a longer law is seen to be longer sooner). Stops after the first
  * block where one of them exceeds its bound (bound (3,): bounds on rv, ra, rj; INFINITY: never).
  * out (5,): largest rv, ra, rj (over the samples seen), duration, the fraction of the duration at
- * which max(rv, sqrt(ra), cbrt(rj)) peaked. scratch: L + 1 + search_grid's + 3 cap doubles (t last).
- * Returns 1 when it stopped early, else 0. */
+ * which max(rv, sqrt(ra), cbrt(rj)) peaked. When it did not stop, the nc breakpoints at s = cross
+ * (nc,) (sorted; q' or q'' jumps there) are checked too, as box_check.BoxCheck.ratios does: each
+ * crossing time interpolated between the grid samples around it, the law there, and the exact
+ * one-sided derivatives sides_a, sides_b, sides_c (2 nc, dof: left values, then right) against
+ * vmax, amax, jmax (the limits themselves), by gp_point_ratios. scratch: L + 1 + search_grid's +
+ * 4 cap + 5 nc doubles. Returns 1 when it stopped early, else 0. */
 #define SEARCH_BLOCK 64
 int64_t gp_box_search_max(idx_t m, idx_t n_us, const double *us, idx_t max_inside, idx_t L, const double *width,
                           const double *ends, const idx_t *first, const double *t0, const double *s0,
                           const double *v0, const double *u, const double *S1, idx_t n, const double *nodes,
                           idx_t dof, const double *coef, const double *coef3, const double *inv_vmax,
                           const double *inv_amax, const double *inv_jmax, const double *bound, double origin,
+                          idx_t nc, const double *cross, const double *sides_a, const double *sides_b,
+                          const double *sides_c, const double *vmax, const double *amax, const double *jmax,
                           double *scratch, double *out)
 {
     const idx_t K = first[L], cap = m + n_us + max_inside;
     double *offs = scratch, *grid_scratch = offs + L + 1;
-    double *t = grid_scratch + 6 * K + 5 * L + 3 + 2 * cap;
+    double *t = grid_scratch + 6 * K + 5 * L + 3 + 2 * cap, *s_all = t + cap, *tc = s_all + cap;
     offs[0] = 0.0;
     for (idx_t p = 0; p < L; ++p) offs[p + 1] = offs[p] + (ends[p] + width[p]);
-    const idx_t M = search_grid(m, n_us, us, max_inside, L, offs, width, ends, first, t0, s0, grid_scratch, t);
+    const idx_t M = search_grid(m, n_us, us, max_inside, 0, L, offs, width, ends, first, t0, s0, grid_scratch, t);
     double rv = -INFINITY, ra = -INFINITY, rj = -INFINITY;
     idx_t peak[3] = {0, 0, 0}, seen = 0;
     int64_t stopped = 0;
@@ -592,6 +617,7 @@ int64_t gp_box_search_max(idx_t m, idx_t n_us, const double *us, idx_t max_insid
         gp_box_evaluate(b, t + i, L, offs, width, ends, first, t0, s0, v0, u, S1, s, sd, sdd, sddd);
         gp_hermite_ratios(b, s, sd, sdd, sddd, n, nodes, dof, coef, coef3, inv_vmax, inv_amax, inv_jmax, v, a, j);
         for (idx_t k = 0; k < b; ++k) {
+            s_all[i + k] = s[k];
             if (!(v[k] <= rv)) { rv = nmax(rv, v[k]); peak[0] = i + k; }
             if (!(a[k] <= ra)) { ra = nmax(ra, a[k]); peak[1] = i + k; }
             if (!(j[k] <= rj)) { rj = nmax(rj, j[k]); peak[2] = i + k; }
@@ -599,10 +625,74 @@ int64_t gp_box_search_max(idx_t m, idx_t n_us, const double *us, idx_t max_insid
         seen += b;
         if (rv > bound[0] || ra > bound[1] || rj > bound[2]) { stopped = seen < M; break; }
     }
+    if (!stopped && nc > 0 && M > 1) {
+        /* jerk._crossing_times (newton=0): the bracket on the grid, linear in s there */
+        double *sb = tc + nc, *sdb = sb + nc, *sddb = sdb + nc, *sdddb = sddb + nc, r[3], q[3];
+        for (idx_t k = 0; k < nc; ++k) {
+            const idx_t jx = clampi(lower(s_all, M, cross[k]), 1, M - 1);
+            const double lo = t[jx - 1], hi = t[jx], ds = s_all[jx] - s_all[jx - 1];
+            tc[k] = lo + (hi - lo) * (ds > 0 ? clampd((cross[k] - s_all[jx - 1]) / ds, 0.0, 1.0) : 0.5);
+        }
+        gp_box_evaluate(nc, tc, L, offs, width, ends, first, t0, s0, v0, u, S1, sb, sdb, sddb, sdddb);
+        gp_point_ratios(nc, dof, sides_a, sides_b, sides_c, sdb, sddb, sdddb, vmax, amax, jmax, r);
+        gp_point_ratios(nc, dof, sides_a + nc * dof, sides_b + nc * dof, sides_c + nc * dof, sdb, sddb, sdddb,
+                        vmax, amax, jmax, q);
+        for (int e = 0; e < 3; ++e) r[e] = nmax(r[e], q[e]);
+        /* Python's max(previous, value): the value only when larger */
+        if (r[0] > rv) rv = r[0];
+        if (r[1] > ra) ra = r[1];
+        if (r[2] > rj) rj = r[2];
+    }
     const double need[3] = {rv, sqrt(ra), cbrt(rj)};
     int top = 0;
     for (int r = 1; r < 3; ++r) if (need[r] > need[top]) top = r;
     out[0] = rv; out[1] = ra; out[2] = rj; out[3] = offs[L];
     out[4] = M > 0 && offs[L] > 0.0 ? t[peak[top]] / offs[L] : 0.0;
     return stopped;
+}
+
+/* The columns of two sample blocks merged by their first row, sorted in each (ties: a first), as a
+ * stable argsort of the concatenated first rows orders them: a's first na columns (rows of lda
+ * doubles), then b's first nb (rows of ldb); out (rows, na + nb). scratch: nb + 1 indices (b is
+ * the short block: each row is copied in runs of a). */
+void gp_merge_columns(idx_t rows, idx_t na, idx_t lda, const double *a, idx_t nb, idx_t ldb, const double *b,
+                      double *out, idx_t *scratch)
+{
+    const idx_t n = na + nb;
+    idx_t *before = scratch;          /* columns of a before b[j]: those <= b[j] (ties: a first) */
+    idx_t hint = 0;
+    for (idx_t j = 0; j < nb; ++j) before[j] = upper_hint(a, na, b[j], &hint);
+    before[nb] = na;
+    for (idx_t r = 0; r < rows; ++r) {
+        const double *ar = a + r * lda, *br = b + r * ldb;
+        double *o = out + r * n;
+        idx_t from = 0;
+        for (idx_t j = 0; j <= nb; ++j) {
+            const idx_t to = before[j] > from ? before[j] : from;
+            memcpy(o, ar + from, (size_t)(to - from) * sizeof(double));
+            o += to - from;
+            from = to;
+            if (j < nb) *o++ = br[j];
+        }
+    }
+}
+
+/* The largest |q' sd| / vmax, |q' sdd + q'' sd^2| / amax and |q' sddd + 3 q'' sd sdd + q''' sd^3|
+ * / jmax over K samples with exact derivatives a, b, c (K, dof) and sd, sdd, sddd (K,): out (3,),
+ * with the formulas, order of operations and NaN propagation of box_check.BoxCheck._max_ratios. */
+void gp_point_ratios(idx_t K, idx_t dof, const double *a, const double *b, const double *c, const double *sd,
+                     const double *sdd, const double *sddd, const double *vmax, const double *amax,
+                     const double *jmax, double *out)
+{
+    double rv = -INFINITY, ra = -INFINITY, rj = -INFINITY;
+    for (idx_t k = 0; k < K; ++k) {
+        const double v = sd[k], acc = sdd[k], jk = sddd[k], v2 = v * v, v3 = pow(v, 3.0);
+        for (idx_t j = 0; j < dof; ++j) {
+            const double ak = a[k * dof + j], bk = b[k * dof + j], ck = c[k * dof + j];
+            rv = nmax(rv, fabs(ak * v) / vmax[j]);
+            ra = nmax(ra, fabs(ak * acc + bk * v2) / amax[j]);
+            rj = nmax(rj, fabs(ak * jk + 3.0 * bk * v * acc + ck * v3) / jmax[j]);
+        }
+    }
+    out[0] = rv; out[1] = ra; out[2] = rj;
 }

@@ -31,33 +31,28 @@ q(s) never changes, only s(t).
 """
 from __future__ import annotations
 
-import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..core.cancel import checkpoint
 from ..core.errors import LimitError
 from . import kernels
-from ._arrays import clip
 from .law import final_duration
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
-from .checks import UNIFORM_S, distinct_times, local_cap, peak_samples
-from .tuning import CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, TOPP_MARGIN
-from .tool import ToolRows, tool_rows
+from .checks import local_cap
+from .tuning import CHECK_MARGIN, LOCAL_PASSES, TOPP_MARGIN
+from .tool import tool_rows
 from .topp import topp
 from .box_filter import BoxLaw, StarPiece, build_box_law, star_pieces, star_tables
+from .box_check import BoxCheck
 from .trajectory import Trajectory
 
-#: Uniform time samples of the check while the width is searched (plus those near the jerk
-#: events and around the peaks); the law kept is checked again on CHECK_SAMPLES, exactly.
-SEARCH_SAMPLES = 250
 #: Width factors of the coarse scan (times the reference width), then golden-section steps.
 WIDTH_SCAN = (0.5, 0.71, 1.0, 1.41, 2.0, 2.83, 4.0)
 GOLDEN_STEPS = 5
-_UNIFORM_S = kernels.Pinned(UNIFORM_S)      # its address, taken once
 #: Acceleration scales of the optimal pass tried in order when the jerk binds (over LOOSE times
 #: the v/a optimum), until one does not shorten the law.
 ACCEL_SCALES = (0.7, 0.5, 0.35, 0.25)
@@ -69,189 +64,6 @@ LOCAL_TRIGGER = 1.1
 CRUISE_TRIGGER = 0.5
 #: Local passes stop after two in a row that shorten the law by less than this fraction.
 LOCAL_GAIN = 0.002
-
-
-def _crossing_times(law: BoxLaw, t: np.ndarray, s: np.ndarray, targets: np.ndarray,
-                    newton: int = 6) -> np.ndarray:
-    """Times at which the (monotone) law passes ``targets``: bracketed on samples, interpolated
-    linearly there, then ``newton`` Newton steps."""
-    j = clip(np.searchsorted(s, targets), 1, s.size - 1)
-    lo, hi = t[j - 1], t[j]
-    ds = s[j] - s[j - 1]
-    tc = lo + (hi - lo) * np.where(ds > 0, clip((targets - s[j - 1]) / np.where(ds > 0, ds, 1.0), 0.0, 1.0), 0.5)
-    for _ in range(newton):
-        checkpoint()
-        sc, sdc, _, _ = law.evaluate(tc, jerk=False)
-        step = np.where(sdc > 0, (sc - targets) / np.where(sdc > 0, sdc, 1.0), 0.0)
-        tc = clip(tc - step, lo, hi)
-    return tc
-
-
-@dataclass(frozen=True, eq=False)
-class _Checker:
-    """The dense check of a box law against the limits (ratios at time scale 1)."""
-
-    path: PathLike
-    ps: PathSamples
-    limits: JointLimits
-    tool: ToolRows | None
-    check_samples: int | None
-    # The last law's dense grid (the local passes check a law, then ask where it is over).
-    _last: list[object] = field(default_factory=list, repr=False)
-    # Where the last full search check peaked (fraction of its duration): the next check starts there.
-    _peak: list[float] = field(default_factory=lambda: [0.0], repr=False)
-
-    def stretch(self, law: BoxLaw, exact: bool = False) -> float:
-        """Smallest uniform time stretch (>= 1) keeping ``law`` within 1 - CHECK_MARGIN of every
-        limit; ``exact``: on the full grid, the samples nearest a limit re-checked with
-        ``path.evaluate`` (else on the search grid with the interpolated derivatives alone)."""
-        rv, ra, rj = self.ratios(law, exact)
-        target = 1.0 - CHECK_MARGIN
-        return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target))
-
-    def search(self, pieces: list[tuple[float, StarPiece]], tables: kernels.Pinned | None, width: np.ndarray,
-               above: float = math.inf) -> tuple[float, float, bool]:
-        """:meth:`stretch` on the search grid of the box law of ``pieces`` with window ``width``
-        (``tables``: their :func:`.box_filter.star_tables`): (stretch, duration, exact). Not exact:
-        the check stopped once stretch x duration was certainly longer than ``above`` (s), and the
-        stretch is a lower bound, with stretch x duration > ``above``."""
-        if kernels.active() and tables is not None and self.tool is None and not self.ps.jumps3.size:
-            target = 1.0 - CHECK_MARGIN
-            t_star = sum(p.t_star for _, p in pieces)
-            # on the stretch: over Lam, stretch x duration > above (duration within round-off of this sum)
-            lam = above / (t_star + float(width.sum())) * (1.0 + 1e-9)
-            rv, ra, rj, duration, peak, stopped = kernels.box_search_max(
-                tables, width, self.ps.kernel_tables3, self._limits, _UNIFORM_S, self._samples(False),
-                2 * SEARCH_SAMPLES, (lam * target, lam**2 * target, lam**3 * target), self._peak[0])
-            if math.isfinite(duration) and duration > 0.0:
-                if not stopped:
-                    self._peak[0] = peak
-                return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target)), duration, not stopped
-        law = build_box_law(pieces, width, tables)
-        return self.stretch(law), law.duration, True
-
-    @functools.cached_property
-    def _limits(self) -> kernels.Pinned:
-        lim = self.limits
-        jmax = lim.max_jerk if lim.max_jerk is not None else np.full(lim.max_velocity.size, np.inf)
-        return kernels.limit_tables(lim.max_velocity, lim.max_acceleration, jmax)
-
-    def need(self, law: BoxLaw) -> tuple[np.ndarray, np.ndarray]:
-        """Check times (M,) and each one's speed factor over the limits (interpolated path
-        derivatives): max(v ratio, sqrt(a ratio), cbrt(j ratio)) / (1 - CHECK_MARGIN)."""
-        dense = self._dense(law)
-        t, need = dense[0], dense[5]
-        return t, need / (1.0 - CHECK_MARGIN)
-
-    def _dense(self, law: BoxLaw, full: bool = True) -> tuple[np.ndarray, tuple[np.ndarray, ...], np.ndarray,
-                                                              np.ndarray, np.ndarray, np.ndarray]:
-        """The dense grid: times, (s, sd, sdd, sddd) there, per-sample v, a, j ratios, and each
-        sample's speed factor max(v, sqrt(a), cbrt(j)); the last law's is kept (read only).
-        ``full``: CHECK_SAMPLES uniform samples (else SEARCH_SAMPLES, for comparing widths)."""
-        if self._last and self._last[0] is law and self._last[1] == full:
-            return self._last[2]  # type: ignore[return-value]
-        ps, lim = self.ps, self.limits
-        vmax, amax = lim.max_velocity, lim.max_acceleration
-        jmax = lim.max_jerk if lim.max_jerk is not None else np.full(vmax.size, np.inf)
-        m = self._samples(full)
-        ev = law.jerk_events()
-        gap = np.diff(ev)
-        keep = gap > 0
-        e0, g = ev[:-1][keep], gap[keep]
-        # Between two jerk events everything is smooth: the full check samples both ends (the
-        # one-sided values of a jump) and the middle; the search, which only compares widths,
-        # the middle alone (fine grids, as at blends, have thousands of events).
-        if full:
-            inside: tuple[np.ndarray, ...] = (e0 + 0.01 * g, e0 + 0.5 * g, e0 + 0.99 * g)
-        else:     # at most 2 SEARCH_SAMPLES of them, evenly strided
-            stride = max(1, -(-e0.size // (2 * SEARCH_SAMPLES)))
-            inside = ((e0 + 0.5 * g)[::stride],)
-        t = np.concatenate([np.linspace(0.0, law.duration, m),
-                            law.times_at(UNIFORM_S), *inside])
-        t = distinct_times(t)
-
-        def ratios(t: np.ndarray) -> tuple[np.ndarray, ...]:
-            if kernels.active():
-                s, sd, sdd, sddd, rv_t, ra_t, rj_t = kernels.ratios(law.tables, ps.kernel_tables3, self._limits,
-                                                                    t, jerk=True)
-            else:
-                s, sd, sdd, jerk = law.evaluate(t)
-                assert jerk is not None
-                sddd = jerk
-                a, b = ps.interpolate_t(s)
-                c = ps.third_derivative_t(s)
-                rv_t = (np.abs(a * sd) / vmax[:, None]).max(axis=0)
-                ra_t = (np.abs(a * sdd + b * sd**2) / amax[:, None]).max(axis=0)
-                rj_t = (np.abs(a * sddd + 3.0 * b * (sd * sdd) + c * sd**3) / jmax[:, None]).max(axis=0)
-            if self.tool is not None:
-                rv_t = np.maximum(rv_t, self.tool.ratios(s, sd))
-            need = np.maximum(np.maximum(rv_t, np.sqrt(ra_t)), np.cbrt(rj_t))
-            return s, sd, sdd, sddd, rv_t, ra_t, rj_t, need
-
-        cols = ratios(t)
-        # Around the highest peaks, samples at a quarter of the uniform spacing (full grid only).
-        extra = peak_samples(t, cols[-1], law.duration / (m - 1), law.duration) if full else np.zeros(0)
-        if extra.size:
-            order = np.argsort(np.concatenate([t, extra]), kind='stable')
-            t = np.concatenate([t, extra])[order]
-            cols = tuple(np.concatenate([u, v])[order] for u, v in zip(cols, ratios(extra)))
-        s, sd, sdd, sddd, rv_t, ra_t, rj_t, need = cols
-        out = (t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need)
-        self._last[:] = [law, full, out]
-        return out
-
-    def _samples(self, full: bool) -> int:
-        """Uniform time samples of the dense grid (``full``) or of the search grid."""
-        return max(10, int(self.check_samples) if self.check_samples is not None
-                   else max(CHECK_SAMPLES, 5 * self.ps.s.size) if full else SEARCH_SAMPLES)
-
-    def ratios(self, law: BoxLaw, exact: bool = True) -> tuple[float, float, float]:
-        """Largest |v| / vmax, |a| / amax (tool speed included in v) and |j| / jmax of ``law``;
-        ``exact``: see :meth:`stretch`."""
-        ps = self.ps
-        if not exact and kernels.active() and math.isfinite(law.duration) and law.duration > 0.0:
-            # the search grid, the law there and its ratios in one compiled call (as _dense)
-            t, s, sd, sdd, sddd, rv_t, ra_t, rj_t = kernels.box_search(
-                law.tables, ps.kernel_tables3, self._limits, _UNIFORM_S, self._samples(False), 2 * SEARCH_SAMPLES)
-            if self.tool is not None:
-                rv_t = np.maximum(rv_t, self.tool.ratios(s, sd))
-        else:
-            t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need = self._dense(law, full=exact)
-        rv, ra, rj = float(rv_t.max()), float(ra_t.max()), float(rj_t.max())
-        # The samples closest to a limit, with the exact path derivatives (the law kept; the
-        # search compares widths on the interpolated derivatives alone).
-        if exact:
-            k = max(1, min(EXACT_CHECKS, need.size))
-            top = np.argpartition(need, -k)[-k:]
-            q_x, a_x, b_x, c_x = (np.asarray(v, dtype=float) for v in self.path.evaluate(s[top]))
-            rv, ra, rj = self._max_ratios((rv, ra, rj), a_x, b_x, c_x, sd[top], sdd[top], sddd[top])
-            if self.tool is not None:
-                rv = max(rv, float(np.max(self.tool.exact_ratios(q_x, a_x, sd[top]))))
-        # Breakpoints where q'' or q''' jumps (not a rest): both one-sided values where crossed.
-        inner = ps.jumps3
-        if inner.size:
-            # the search compares widths: the crossing interpolated between its samples suffices
-            crossing = _crossing_times(law, t, s, ps.s[inner], newton=6 if exact else 0)
-            _, sd_b, sdd_b, sddd_b = law.evaluate(crossing)
-            assert sddd_b is not None
-            for side in ((ps.aL, ps.bL, ps.cL), (ps.aR, ps.bR, ps.cR)):
-                a_b, b_b, c_b = (arr[inner] for arr in side)
-                rv, ra, rj = self._max_ratios((rv, ra, rj), a_b, b_b, c_b, sd_b, sdd_b, sddd_b)
-            if self.tool is not None:
-                for V in (self.tool.samples.aL[inner], self.tool.samples.aR[inner]):
-                    rv = max(rv, float(np.max(self.tool.ratios_of(V.T, sd_b))))
-        return rv, ra, rj
-
-    def _max_ratios(self, prev: tuple[float, float, float], a: np.ndarray, b: np.ndarray,
-                    c: np.ndarray, sd: np.ndarray, sdd: np.ndarray, sddd: np.ndarray
-                    ) -> tuple[float, float, float]:
-        """``prev`` raised by the ratios of exact derivatives a, b, c (K, dof) at sd, sdd, sddd (K,)."""
-        lim = self.limits
-        jmax = lim.max_jerk if lim.max_jerk is not None else np.full(a.shape[1], np.inf)
-        sd, sdd, sddd = sd[:, None], sdd[:, None], sddd[:, None]
-        return (max(prev[0], float(np.max(np.abs(a * sd) / lim.max_velocity))),
-                max(prev[1], float(np.max(np.abs(a * sdd + b * sd**2) / lim.max_acceleration))),
-                max(prev[2], float(np.max(np.abs(a * sddd + 3.0 * b * sd * sdd + c * sd**3) / jmax))))
 
 
 def _reference_width(fine: PathSamples, x: np.ndarray, pieces: list[tuple[float, StarPiece]],
@@ -319,7 +131,7 @@ class JerkLimited:
         tool = tool_rows(path, limits, ps)
         fine = ps.refined(int(self.refine))
         x_max = None if tool is None else tool.speed_cap(int(self.refine), TOPP_MARGIN)
-        checker = _Checker(path, ps, limits, tool, self.check_samples)
+        checker = BoxCheck(path, ps, limits, tool, self.check_samples)
         x0 = topp(fine, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN), x_max)
         t_star = sum(p.t_star for _, p in star_pieces(fine.s, x0))     # the v/a optimum
 
@@ -380,7 +192,7 @@ def cruise_cap(ps: PathSamples, s_fine: np.ndarray, jmax: np.ndarray) -> np.ndar
 
 
 def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[BoxLaw, float],
-                  checker: _Checker, x_max: np.ndarray | None, jmax: np.ndarray
+                  checker: BoxCheck, x_max: np.ndarray | None, jmax: np.ndarray
                   ) -> tuple[BoxLaw, float]:
     """Cap the optimal profile near the samples over a limit and filter again (as in
     :mod:`.smoothing`, step 3), keeping the shortest checked law; (law, its stretch)."""
@@ -398,8 +210,9 @@ def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[Box
         if len(pieces) != law.width.size:      # the rests moved: search the width again
             law, lam = _best_width(pieces, _reference_width(fine, x, pieces, jmax), checker)
         else:                                  # keep the window: one check per pass
-            law = build_box_law(pieces, law.width)
-            lam = checker.stretch(law)
+            tables = star_tables(pieces) if kernels.active() else None
+            law = build_box_law(pieces, law.width, tables)
+            lam = checker.search(pieces, tables, law.width)[0]
         gain = lam * law.duration < (1.0 - LOCAL_GAIN) * best[1] * best[0].duration
         if lam * law.duration < best[1] * best[0].duration:
             best = (law, lam)
@@ -415,12 +228,12 @@ def _floor(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray) -> float:
     return (sum(p.t_star for _, p in pieces) + WIDTH_SCAN[0] * float(w_ref.sum())) * (1.0 - 1e-12)
 
 
-def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checker: _Checker,
+def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checker: BoxCheck,
                 start: int = WIDTH_SCAN.index(1.0)) -> tuple[BoxLaw, float]:
     """The width factor with the shortest checked duration, searched from ``WIDTH_SCAN[start]``:
     (law, its stretch)."""
     # log c -> (stretch x duration, width, stretch, exact); not exact: a lower bound, longer than
-    # a duration known exactly (the check stopped there; see _Checker.search)
+    # a duration known exactly (the check stopped there; see BoxCheck.search)
     cache: dict[float, tuple[float, np.ndarray, float, bool]] = {}
     tables = star_tables(pieces) if kernels.active() else None    # the same s* for every width
 

@@ -16,12 +16,13 @@ from typing import Any
 import numpy as np
 
 from ..core.compiled import LIB as _LIB
-from ..core.compiled import REASON, Pinned, active, numpy_only
+from ..core.compiled import REASON, Pinned, active, numpy_only, scratch
 from ..core.compiled import f64 as _f64
 
 __all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_search', 'box_search_max', 'box_tables',
            'build_piecewise', 'evaluate', 'forward_pass', 'hermite_coef', 'hermite_ratios', 'limit_tables',
-           'numpy_only', 'path_tables', 'piecewise_tables', 'ratios', 'refine', 'suspects']
+           'merge_columns', 'numpy_only', 'path_tables', 'piecewise_tables', 'point_ratios', 'ratios', 'refine',
+           'suspects']
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,46 +114,78 @@ def box_tables(t_offsets: np.ndarray, width: np.ndarray, stars: Pinned) -> LawTa
     return LawTables(_LIB.gp_box_evaluate, (width.size, *p.ptrs, *stars.ptrs), (p, stars))
 
 
-def box_search(law: LawTables, path: Pinned, limits: Pinned, us: Pinned, m: int, max_inside: int
-               ) -> tuple[np.ndarray, ...]:
-    """The width search's check of a box-filtered law (``law``: its :func:`box_tables`) in one
-    call: its grid (m uniform times, the times at which it passes ``us`` (one array), the middles
-    of its jerk events' gaps, at most ``max_inside``; sorted, each once), the law there and the
-    ratios of :func:`ratios` with the jerk: t, s, sd, sdd, sddd, rv, ra, rj, each (M,)."""
+def box_search(law: LawTables, path: Pinned, limits: Pinned, us: Pinned, m: int, max_inside: int,
+               full: bool = False, reuse: bool = False) -> np.ndarray:
+    """The dense check of a box-filtered law (``law``: its :func:`box_tables`) in one call: its grid
+    (m uniform times, the times at which it passes ``us`` (one array), inside its jerk events' gaps
+    three samples each (``full``) or the middles, at most ``max_inside``; sorted, each once), the
+    law there and the ratios of :func:`ratios` with the jerk: rows t, s, sd, sdd, sddd, rv, ra, rj
+    and a spare row, (9, M) (a view; with ``reuse`` of this thread's scratch buffer, valid until
+    the next such call)."""
     assert _LIB is not None
     L, stars = law.const[0], law.keep[1]      # type: ignore[index]
     first, u = stars.arrays[1], us.arrays[0]
     c = path.arrays[1]
     assert first is not None and u is not None and c is not None
-    cap = m + u.size + max_inside
-    scratch = np.empty(6 * int(first[-1]) + 5 * L + 3 + 2 * cap)
-    out = np.empty((8, cap))
+    K = int(first[-1])
+    cap = m + u.size + (3 * (2 * K + 3 * L) if full else max_inside)
+    work = scratch('grid', 6 * K + 5 * L + 3 + 2 * cap)
+    out = scratch('grid out', 9 * cap).reshape(9, cap) if reuse else np.empty((9, cap))
     nodes, coef, coef3 = path.ptrs
-    M = _LIB.gp_box_search_grid(m, u.size, us.ptrs[0], max_inside, *law.const, c.shape[2], nodes, c.shape[1], coef,
-                                coef3, *limits.ptrs, scratch.ctypes.data, out.ctypes.data)
-    return tuple(out[:, :M])
+    M = _LIB.gp_box_search_grid(m, u.size, us.ptrs[0], max_inside, int(full), *law.const, c.shape[2], nodes,
+                                c.shape[1], coef, coef3, *limits.ptrs, work.ctypes.data, out.ctypes.data)
+    return out[:, :M]
+
+
+def point_ratios(a: np.ndarray, b: np.ndarray, c: np.ndarray, sd: np.ndarray, sdd: np.ndarray, sddd: np.ndarray,
+                 limits: Pinned) -> tuple[float, float, float]:
+    """The largest v, a, j ratios of exact derivatives a, b, c (K, dof) at sd, sdd, sddd (K,), as
+    ``box_check.BoxCheck._max_ratios`` computes them (``limits``: the limits themselves, not reciprocals)."""
+    assert _LIB is not None
+    arrays = [_f64(v) for v in (a, b, c, sd, sdd, sddd)]
+    out = np.empty(3)
+    _LIB.gp_point_ratios(arrays[0].shape[0], arrays[0].shape[1], *(v.ctypes.data for v in arrays), *limits.ptrs,
+                         out.ctypes.data)
+    return float(out[0]), float(out[1]), float(out[2])
+
+
+def merge_columns(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The columns of a (R, na) and b (R, nb) (rows of contiguous doubles) merged by their first
+    row, sorted in each: as ``np.argsort(np.concatenate([a[0], b[0]]), kind='stable')`` orders
+    them; (R, na + nb)."""
+    assert _LIB is not None and a.shape[0] == b.shape[0] and a.strides[1] == b.strides[1] == 8
+    out = np.empty((a.shape[0], a.shape[1] + b.shape[1]))
+    before = np.empty(b.shape[1] + 1, dtype=np.int64)
+    _LIB.gp_merge_columns(a.shape[0], a.shape[1], a.strides[0] // 8, a.ctypes.data, b.shape[1], b.strides[0] // 8,
+                          b.ctypes.data, out.ctypes.data, before.ctypes.data)
+    return out
 
 
 def box_search_max(stars: Pinned, width: np.ndarray, path: Pinned, limits: Pinned, us: Pinned, m: int,
-                   max_inside: int, bound: tuple[float, float, float], origin: float = 0.0
-                   ) -> tuple[float, float, float, float, float, bool]:
+                   max_inside: int, bound: tuple[float, float, float], origin: float = 0.0,
+                   crossings: Pinned | None = None) -> tuple[float, float, float, float, float, bool]:
     """The largest ratios of :func:`box_search` for the box-filtered law of window ``width`` (L,) on
     the pieces ``stars`` (:func:`.box_filter.star_tables`), without building the law: rv, ra, rj,
     the law's duration, the fraction of it where the speed factor peaked, and whether the check
     stopped early, after a block of samples where one ratio exceeded its ``bound`` (the maxima then
-    cover only the samples seen; the blocks are taken from the fraction ``origin`` of the duration on)."""
+    cover only the samples seen; the blocks are taken from the fraction ``origin`` of the duration on).
+    ``crossings``: breakpoints the law crosses, checked when it did not stop: their s (K,), the
+    one-sided q', q'', q''' there (2 K, dof each: left, then right) and vmax, amax, jmax."""
     assert _LIB is not None
     first, u = stars.arrays[1], us.arrays[0]
     c = path.arrays[1]
     assert first is not None and u is not None and c is not None
     L, cap = width.size, m + u.size + max_inside
     width = _f64(width)
-    scratch = np.empty(L + 1 + 6 * int(first[-1]) + 5 * L + 3 + 3 * cap)
+    cross = crossings.arrays[0] if crossings is not None else None
+    nc = 0 if cross is None else cross.size
+    work = scratch('grid', L + 1 + 6 * int(first[-1]) + 5 * L + 3 + 4 * cap + 5 * nc)
     out = np.array(bound + (0.0, 0.0), dtype=float)      # the bounds in, the maxima and more out
     nodes, coef, coef3 = path.ptrs
     stopped = _LIB.gp_box_search_max(m, u.size, us.ptrs[0], max_inside, L, width.ctypes.data, *stars.ptrs,
                                      c.shape[2], nodes, c.shape[1], coef, coef3, *limits.ptrs, out.ctypes.data,
-                                     float(origin), scratch.ctypes.data, out.ctypes.data)
+                                     float(origin), nc, *(crossings.ptrs if crossings is not None else (None,) * 7),
+                                     work.ctypes.data, out.ctypes.data)
     return float(out[0]), float(out[1]), float(out[2]), float(out[3]), float(out[4]), bool(stopped)
 
 
@@ -230,7 +263,7 @@ def topp(rows: Pinned, vmax: np.ndarray, amax: np.ndarray, x_max: np.ndarray | N
     n, dof = s.size - 1, aL.shape[1]
     R = 2 * dof
     lim = Pinned(vmax, amax, x_max)
-    block = np.empty(4 * n * R + 2 * n + 2 * (n + 1))
+    block = scratch('topp', 4 * n * R + 2 * n + 2 * (n + 1))       # rows, passes: consumed here
     base = block.ctypes.data
     alpha, d, A, B = (base + 8 * i * n * R for i in range(4))
     static = base + 8 * 4 * n * R
@@ -240,7 +273,7 @@ def topp(rows: Pinned, vmax: np.ndarray, amax: np.ndarray, x_max: np.ndarray | N
     _LIB.gp_topp_rows(n, dof, *rows.ptrs[:5], *lim.ptrs, rows.ptrs[5], alpha, d, A, B, static, two_h)
     _LIB.gp_backward_pass(n, R, A, B, static, hi)
     _LIB.gp_forward_pass(n, R, alpha, d, two_h, hi, x)
-    return block[4 * n * R + 2 * n + n + 1:]
+    return block[4 * n * R + 2 * n + n + 1:].copy()
 
 
 def backward_pass(A: np.ndarray, B: np.ndarray, static: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import pytest
 
-from geodesic_planner.timing import kernels, time_parameterize
+from geodesic_planner.timing import box_check, kernels, time_parameterize
 from geodesic_planner.timing.sampling import sample_path
 
 from timing_paths import CornerPath, ZigZagPath, _ur5e_line_path, curved
@@ -163,24 +163,22 @@ def test_real_arm_laws_are_the_same_with_numpy():
 
 def _search_checks(path, monkeypatch, **kw):
     """(checker, law) of every width-search check while ``path`` is timed with ``kw``."""
-    from geodesic_planner.timing import jerk
     from geodesic_planner.timing.box_filter import build_box_law
-    seen, search = [], jerk._Checker.search
+    seen, search = [], box_check.BoxCheck.search
 
     def spy(checker, pieces, tables, width, above=np.inf):
         seen.append((checker, build_box_law(pieces, width, tables)))
         return search(checker, pieces, tables, width, above)
-    monkeypatch.setattr(jerk._Checker, 'search', spy)
+    monkeypatch.setattr(box_check.BoxCheck, 'search', spy)
     time_parameterize(path, **kw)
-    monkeypatch.setattr(jerk._Checker, 'search', search)
+    monkeypatch.setattr(box_check.BoxCheck, 'search', search)
     return seen
 
 
 def test_search_grid_is_the_numpy_grid(monkeypatch):
     # gp_box_search_grid builds the width search's grid itself (uniform times, np.interp of the
     # s-uniform samples, the middles of the jerk events' gaps, sorted and each once): the same
-    # times, bit for bit, as _Checker._dense(full=False), and the same law and ratios there
-    from geodesic_planner.timing import jerk
+    # times, bit for bit, as BoxCheck._dense(full=False), and the same law and ratios there
     robot, planner, q_a, T_a, T_b = _ur5e_line_path()
     poses = [T_a, T_b, T_a.copy()]
     poses[2][:3, 3] += [0.05, 0.1, -0.05]
@@ -191,8 +189,8 @@ def test_search_grid_is_the_numpy_grid(monkeypatch):
         seen = _search_checks(path, monkeypatch, **kw)
         assert seen
         for checker, law in seen[::3]:
-            got = kernels.box_search(law.tables, checker.ps.kernel_tables3, checker._limits, jerk._UNIFORM_S,
-                                     checker._samples(False), 2 * jerk.SEARCH_SAMPLES)
+            got = kernels.box_search(law.tables, checker.ps.kernel_tables3, checker._limits, box_check._UNIFORM_S,
+                                     checker._samples(False), 2 * box_check.SEARCH_SAMPLES)
             checker._last.clear()
             with kernels.numpy_only():
                 t, cols, rv, ra, rj, _ = checker._dense(law, full=False)
@@ -310,8 +308,12 @@ def _jerk_law_cases():
     path = planner.plan(T_a, T_b, start_joints=q_a)
     free = time_parameterize(path)
     peak = np.abs(free.jerk_at_time(np.linspace(0.0, free.duration, 2001))).max(axis=0)
+    poses = [T_a, T_b, T_a.copy()]
+    poses[2][:3, 3] += [0.05, 0.1, -0.05]
+    seq = planner.plan_through(poses, start_joints=q_a, blend_radius=0.02)    # breakpoints crossed
     return [(name, p, {'max_jerk': j}) for name, p, j in _law_cases()] + [
-        ('ur5e', path, {'max_jerk': 0.3 * peak}), ('ur5e loose', path, {'max_jerk': 3.0 * peak})]
+        ('ur5e', path, {'max_jerk': 0.3 * peak}), ('ur5e loose', path, {'max_jerk': 3.0 * peak}),
+        ('ur5e blended', seq, {'max_jerk': 50.0})]
 
 
 def _same_bits(a, b):
@@ -320,22 +322,27 @@ def _same_bits(a, b):
 
 
 def test_search_maxima_are_the_search_grid_maxima(monkeypatch):
-    # gp_box_search_max (offsets from the window, blocks from an origin, early stop) against
-    # gp_box_search_grid on the law built in Python: the same duration and maxima, bit for bit
-    from geodesic_planner.timing import jerk
+    # gp_box_search_max (offsets from the window, blocks from an origin, early stop, breakpoints)
+    # against gp_box_search_grid on the law built in Python, and the crossed breakpoints as
+    # BoxCheck.ratios checks them: the same duration and maxima, bit for bit
     from geodesic_planner.timing.box_filter import star_tables
-    checked = 0
+    checked = crossed = 0
     for _name, path, kw in _jerk_law_cases():
         for checker, law in _search_checks(path, monkeypatch, **kw)[::4]:
             pieces = list(zip(law.s_start.tolist(), law.stars))
             tables = star_tables(pieces)
-            args = (tables, law.width, checker.ps.kernel_tables3, checker._limits, jerk._UNIFORM_S,
-                    checker._samples(False), 2 * jerk.SEARCH_SAMPLES)
+            args = (tables, law.width, checker.ps.kernel_tables3, checker._limits, box_check._UNIFORM_S,
+                    checker._samples(False), 2 * box_check.SEARCH_SAMPLES)
             grid = kernels.box_search(law.tables, *args[2:])
-            want = tuple(float(r.max()) for r in grid[5:])
+            want = tuple(float(r.max()) for r in grid[5:8])
             for origin in (0.0, 0.37, 1.0):
                 rv, ra, rj, duration, peak, stopped = kernels.box_search_max(*args, (np.inf,) * 3, origin)
                 assert (rv, ra, rj) == want and duration == law.duration and not stopped
+            if checker._crossings is not None:
+                got = kernels.box_search_max(*args, (np.inf,) * 3, 0.5, checker._crossings)
+                assert got[:3] == checker.ratios(law, exact=False)
+                assert all(g >= w for g, w in zip(got[:3], want))
+                crossed += 1
                 need = np.maximum(np.maximum(grid[5], np.sqrt(grid[6])), np.cbrt(grid[7]))
                 at = np.argmin(np.abs(grid[0] - peak * duration))    # a sample where the need peaks (ties: any)
                 assert need[at] == pytest.approx(need.max(), rel=1e-12)
@@ -345,7 +352,7 @@ def test_search_maxima_are_the_search_grid_maxima(monkeypatch):
             assert stopped and (rv > half[0] or ra > half[1] or rj > half[2])
             assert rv <= want[0] and ra <= want[1] and rj <= want[2]
             checked += 1
-    assert checked >= 10
+    assert checked >= 10 and crossed >= 3
 
 
 @pytest.mark.parametrize('name,path,kw', _jerk_law_cases(), ids=lambda v: v if isinstance(v, str) else '')
@@ -355,8 +362,8 @@ def test_width_search_shortcuts_change_nothing(name, path, kw, monkeypatch):
     # when even their shortest conceivable law (width factor WIDTH_SCAN[0], no stretch) is longer.
     from geodesic_planner.timing import jerk
     fast = time_parameterize(path, **kw)
-    search = jerk._Checker.search
-    monkeypatch.setattr(jerk._Checker, 'search', lambda self, pieces, tables, width, above=np.inf:
+    search = box_check.BoxCheck.search
+    monkeypatch.setattr(box_check.BoxCheck, 'search', lambda self, pieces, tables, width, above=np.inf:
                         search(self, pieces, tables, width))
     _same_bits(fast, time_parameterize(path, **kw))
     monkeypatch.setattr(jerk, '_floor', lambda pieces, w_ref: 0.0)      # every scale searched
@@ -367,18 +374,19 @@ def test_scale_floor_is_below_every_law_tried(monkeypatch):
     # _floor's promise, checked on every width the search tries: stretch x duration >= the floor
     from geodesic_planner.timing import jerk
     floors, tried = {}, []
-    best_width, search = jerk._best_width, jerk._Checker.search
+    best_width, search = jerk._best_width, box_check.BoxCheck.search
 
     def spy_best(pieces, w_ref, checker, start=3):
-        floors[id(pieces)] = jerk._floor(pieces, w_ref)
+        floors[id(pieces)] = (pieces, jerk._floor(pieces, w_ref))      # kept alive: ids stay unique
         return best_width(pieces, w_ref, checker, start)
 
     def spy_search(checker, pieces, tables, width, above=np.inf):
         lam, duration, exact = search(checker, pieces, tables, width, above)
-        tried.append((floors.get(id(pieces)), lam * duration))
+        known = floors.get(id(pieces))
+        tried.append((known[1] if known is not None and known[0] is pieces else None, lam * duration))
         return lam, duration, exact
     monkeypatch.setattr(jerk, '_best_width', spy_best)
-    monkeypatch.setattr(jerk._Checker, 'search', spy_search)
+    monkeypatch.setattr(box_check.BoxCheck, 'search', spy_search)
     for _, path, kw in _jerk_law_cases():
         for f in (1.0, 0.1):
             time_parameterize(path, max_jerk=np.asarray(kw['max_jerk']) * f)
