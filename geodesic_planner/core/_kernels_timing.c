@@ -491,6 +491,46 @@ static double interp(double x, const double *xp, const double *fp, idx_t n, idx_
     return r;
 }
 
+/* A check grid into t: m uniform times on [0, duration] (np.linspace), the times np.interp(us,
+ * xp, fp) (n_us, nx entries; us and xp sorted) and the sorted extra (ne,), sorted, each once.
+ * tmp: m + n_us + ne doubles. Returns the count. */
+static idx_t merged_grid(idx_t m, double duration, idx_t n_us, const double *us, idx_t nx, const double *xp,
+                         const double *fp, idx_t ne, const double *extra, double *tmp, double *t)
+{
+    double *grid = tmp, *at = tmp + m;
+    const double step = duration / (double)(m - 1);
+    for (idx_t i = 0; i < m; ++i) grid[i] = (double)i * step + 0.0;
+    grid[m - 1] = duration;
+    idx_t hint = 0;
+    for (idx_t i = 0; i < n_us; ++i) at[i] = interp(us[i], xp, fp, nx, &hint);
+    /* merged into t, then with the extra (not in tmp) back into tmp, and copied to t */
+    idx_t M = merge(grid, m, at, n_us, t);
+    M = merge(t, M, extra, ne, tmp);
+    for (idx_t i = 0; i < M; ++i) t[i] = tmp[i];
+    return sort_distinct(t, M);
+}
+
+/* The smoothed law's dense check (smoothing._stretch): the grid (m uniform times on [0, duration],
+ * the rests offs (L + 1,) when L > 1, the times np.interp(us, node_s, node_t) at which it passes
+ * us (n_us,); sorted, each once), the law there (tables as gp_piecewise_evaluate) and the ratios
+ * of gp_hermite_ratios without the jerk. scratch: m + n_us + L + 1 doubles. out (6 or more,
+ * cap = m + n_us + L + 1): rows t, s, sd, sdd, rv, ra. Returns the number of samples. */
+idx_t gp_piecewise_check(idx_t m, idx_t n_us, const double *us, idx_t nn, const double *node_s,
+                         const double *node_t, idx_t L, const double *offs, const double *pieces, double key_step,
+                         idx_t S, const double *seg_key, const double *seg, idx_t n, const double *nodes, idx_t dof,
+                         const double *coef, const double *inv_vmax, const double *inv_amax, double *scratch,
+                         double *out)
+{
+    const idx_t cap = m + n_us + L + 1;
+    const idx_t M = merged_grid(m, offs[L], n_us, us, nn, node_s, node_t, L > 1 ? L + 1 : 0, offs, scratch, out);
+    double *row[6];
+    for (int r = 0; r < 6; ++r) row[r] = out + r * cap;
+    gp_piecewise_evaluate(M, row[0], L, offs, pieces, key_step, S, seg_key, seg, row[1], row[2], row[3], NULL);
+    gp_hermite_ratios(M, row[1], row[2], row[3], NULL, n, nodes, dof, coef, NULL, inv_vmax, inv_amax, NULL,
+                      row[4], row[5], NULL);
+    return M;
+}
+
 /* The dense check grid of a box-filtered law (box_check.BoxCheck._dense): m uniform times on [0,
  * duration]; the times at which the law passes us (n_us,) (BoxLaw.times_at); inside the gaps
  * between its jerk events (BoxLaw.jerk_events), with full three samples each (at 0.01, 0.5, 0.99
@@ -520,9 +560,6 @@ static idx_t search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside
     ev[ne++] = offs[L];
     ne = sort_distinct(ev, ne);
     /* the grid: uniform times, then the times at us, then the middles of the events' gaps */
-    const double step = duration / (double)(m - 1);
-    for (idx_t i = 0; i < m; ++i) grid[i] = (double)i * step + 0.0;
-    grid[m - 1] = duration;
     idx_t nx = 0;
     for (idx_t p = 0; p < L; ++p) {
         const idx_t f = first[p], np1 = first[p + 1] - f + 1;
@@ -532,11 +569,8 @@ static idx_t search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside
             fp[nx] = t_shift + (k < np1 - 1 ? t0[f + k] : ends[p]);
         }
     }
-    idx_t hint = 0;
-    double *at = grid + m;
-    for (idx_t i = 0; i < n_us; ++i) at[i] = interp(us[i], xp, fp, nx, &hint);
     idx_t gaps = ne - 1 > 0 ? ne - 1 : 0, ni = 0;
-    double *inside = at + n_us;
+    double *inside = grid;
     if (full) {
         for (idx_t k = 0; k < gaps; ++k) {
             const double g = ev[k + 1] - ev[k];
@@ -549,9 +583,7 @@ static idx_t search_grid(idx_t m, idx_t n_us, const double *us, idx_t max_inside
         if (stride < 1) stride = 1;
         for (idx_t k = 0; k < gaps; k += stride) inside[ni++] = ev[k] + 0.5 * (ev[k + 1] - ev[k]);
     }
-    idx_t M = merge(grid, m, at, n_us, tmp);
-    M = merge(tmp, M, inside, ni, t);
-    return sort_distinct(t, M);
+    return merged_grid(m, duration, n_us, us, nx, xp, fp, ni, inside, tmp, t);
 }
 
 /* search_grid of a box-filtered law, the law there and its ratios to the limits. The law's tables

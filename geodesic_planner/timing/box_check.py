@@ -21,7 +21,7 @@ from ..core.cancel import checkpoint
 from . import kernels
 from ._arrays import clip
 from .box_filter import BoxLaw, StarPiece, build_box_law
-from .checks import UNIFORM_S, distinct_times, peak_samples
+from .checks import UNIFORM_S, UNIFORM_S_PINNED, distinct_times, peak_samples
 from .sampling import PathSamples
 from .tool import ToolRows
 from .tuning import CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS
@@ -32,7 +32,6 @@ __all__ = ['SEARCH_SAMPLES', 'BoxCheck']
 #: Uniform time samples of the check while the width is searched (plus those near the jerk
 #: events and around the peaks); the law kept is checked again on CHECK_SAMPLES, exactly.
 SEARCH_SAMPLES = 250
-_UNIFORM_S = kernels.Pinned(UNIFORM_S)      # its address, taken once
 
 
 def _crossing_times(law: BoxLaw, t: np.ndarray, s: np.ndarray, targets: np.ndarray,
@@ -85,7 +84,7 @@ class BoxCheck:
             # on the stretch: over Lam, stretch x duration > above (duration within round-off of this sum)
             lam = above / (t_star + float(width.sum())) * (1.0 + 1e-9)
             rv, ra, rj, duration, peak, stopped = kernels.box_search_max(
-                tables, width, self.ps.kernel_tables3, self._limits, _UNIFORM_S, self._samples(False),
+                tables, width, self.ps.kernel_tables3, self._limits, UNIFORM_S_PINNED, self._samples(False),
                 2 * SEARCH_SAMPLES, (lam * target, lam**2 * target, lam**3 * target), self._peak[0],
                 self._crossings)
             if math.isfinite(duration) and duration > 0.0:
@@ -159,7 +158,7 @@ class BoxCheck:
             return block
 
         # in this thread's scratch buffer, merged or copied into the block kept before it returns
-        block = finish(kernels.box_search(law.tables, ps.kernel_tables3, self._limits, _UNIFORM_S, m,
+        block = finish(kernels.box_search(law.tables, ps.kernel_tables3, self._limits, UNIFORM_S_PINNED, m,
                                           2 * SEARCH_SAMPLES, full, reuse=True))
         extra = peak_samples(block[0], block[8], law.duration / (m - 1), law.duration) if full else np.zeros(0)
         if extra.size:
@@ -234,7 +233,8 @@ class BoxCheck:
         if not exact and kernels.active() and math.isfinite(law.duration) and law.duration > 0.0:
             # the search grid, the law there and its ratios in one compiled call (as _dense)
             t, s, sd, sdd, sddd, rv_t, ra_t, rj_t = kernels.box_search(
-                law.tables, ps.kernel_tables3, self._limits, _UNIFORM_S, self._samples(False), 2 * SEARCH_SAMPLES)[:8]
+                law.tables, ps.kernel_tables3, self._limits, UNIFORM_S_PINNED, self._samples(False),
+                2 * SEARCH_SAMPLES)[:8]
             if self.tool is not None:
                 rv_t = np.maximum(rv_t, self.tool.ratios(s, sd))
         else:

@@ -5,13 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import kernels
 from .tuning import LOCAL_MARGIN, LOCAL_POWER, PEAK_CHECKS, PEAK_SAMPLES, S_UNIFORM_CHECKS
 
-__all__ = ['UNIFORM_S', 'distinct_times', 'local_cap', 'peak_samples', 'range_max']
+__all__ = ['UNIFORM_S', 'UNIFORM_S_PINNED', 'distinct_times', 'local_cap', 'peak_samples', 'range_max']
 
 #: Path parameters of the check samples spread uniformly in s (each law maps them to times).
 UNIFORM_S = np.linspace(0.0, 1.0, S_UNIFORM_CHECKS)
 UNIFORM_S.flags.writeable = False
+#: :data:`UNIFORM_S` for the compiled checks (its address taken once).
+UNIFORM_S_PINNED = kernels.Pinned(UNIFORM_S)
 
 
 def local_cap(s_nodes: np.ndarray, x: np.ndarray, law: object, t: np.ndarray, need: np.ndarray,

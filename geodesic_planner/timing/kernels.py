@@ -21,8 +21,8 @@ from ..core.compiled import f64 as _f64
 
 __all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_search', 'box_search_max', 'box_tables',
            'build_piecewise', 'evaluate', 'forward_pass', 'hermite_coef', 'hermite_ratios', 'limit_tables',
-           'merge_columns', 'numpy_only', 'path_tables', 'piecewise_tables', 'point_ratios', 'ratios', 'refine',
-           'suspects']
+           'merge_columns', 'numpy_only', 'path_tables', 'piecewise_check', 'piecewise_tables', 'point_ratios',
+           'ratios', 'refine', 'suspects']
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,6 +104,25 @@ def piecewise_tables(t_offsets: np.ndarray, pieces: np.ndarray, key_step: float,
     p = Pinned(t_offsets, pieces, seg_key, seg)
     o, pc, k, sg = p.ptrs
     return LawTables(_LIB.gp_piecewise_evaluate, (pieces.shape[1], o, pc, float(key_step), seg_key.size, k, sg), p)
+
+
+def piecewise_check(law: LawTables, nodes: Pinned, path: Pinned, limits: Pinned, us: Pinned, m: int
+                    ) -> np.ndarray:
+    """The dense check of a smoothed law (``law``: its :func:`piecewise_tables`; ``nodes``: its
+    node_s and node_t) in one call: its grid (m uniform times, the rests between pieces, the times
+    at which it passes ``us`` (one array); sorted, each once), the law there and the ratios of
+    :func:`ratios` without the jerk: rows t, s, sd, sdd, rv, ra, (6, M) (a view)."""
+    assert _LIB is not None
+    L = law.const[0]
+    u, c, node_s = us.arrays[0], path.arrays[1], nodes.arrays[0]
+    assert u is not None and c is not None and node_s is not None
+    cap = m + u.size + L + 1
+    out = np.empty((6, cap))
+    work = scratch('grid', cap)
+    M = _LIB.gp_piecewise_check(m, u.size, us.ptrs[0], node_s.size, *nodes.ptrs, *law.const, c.shape[2], path.ptrs[0],
+                                c.shape[1], path.ptrs[1], limits.ptrs[0], limits.ptrs[1], work.ctypes.data,
+                                out.ctypes.data)
+    return out[:, :M]
 
 
 def box_tables(t_offsets: np.ndarray, width: np.ndarray, stars: Pinned) -> LawTables:

@@ -41,7 +41,7 @@ from .law import final_duration
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
 from .tool import ToolRows, tool_rows
-from .checks import UNIFORM_S, distinct_times, local_cap, peak_samples
+from .checks import UNIFORM_S, UNIFORM_S_PINNED, distinct_times, local_cap, peak_samples
 from .tuning import (CHECK_MARGIN, CHECK_SAMPLES, EXACT_CHECKS, LOCAL_PASSES, TOPP_MARGIN)
 from .topp import topp
 from .trajectory import Trajectory
@@ -450,28 +450,35 @@ def _stretch(path: PathLike, ps: PathSamples, law: PiecewiseLaw, vmax: np.ndarra
     """
     m = int(check_samples) if check_samples is not None else max(CHECK_SAMPLES, 5 * ps.s.size)
     m = max(m, 10)
-    t_chk = np.linspace(0.0, law.duration, m)
-    if law.n_pieces > 1:
-        t_chk = np.union1d(t_chk, law.t_offsets)
-    # Also samples about uniform in s: a long law can cross a stretch of the path in a fraction
-    # of its duration, where samples uniform in t are sparse.
-    t_chk = distinct_times(np.concatenate([t_chk, law.times_at(UNIFORM_S)]))
     pinned = kernels.limit_tables(vmax, amax) if kernels.active() else None     # for both calls
-    s, sd, sdd, rv_t, ra_t = _ratios(ps, law, t_chk, vmax, amax, tool, pinned)
+    if pinned is not None and math.isfinite(law.duration) and law.duration > 0.0:
+        # the same grid, law and ratios in one compiled call
+        t_chk, s, sd, sdd, rv_t, ra_t = kernels.piecewise_check(
+            law.kernel_tables, kernels.Pinned(law.node_s, law.node_t), ps.kernel_tables, pinned, UNIFORM_S_PINNED, m)
+        if tool is not None:
+            rv_t = np.maximum(rv_t, tool.ratios(s, sd))
+    else:
+        t_chk = np.linspace(0.0, law.duration, m)
+        if law.n_pieces > 1:
+            t_chk = np.union1d(t_chk, law.t_offsets)
+        # Also samples about uniform in s: a long law can cross a stretch of the path in a fraction
+        # of its duration, where samples uniform in t are sparse.
+        t_chk = distinct_times(np.concatenate([t_chk, law.times_at(UNIFORM_S)]))
+        s, sd, sdd, rv_t, ra_t = _ratios(ps, law, t_chk, vmax, amax, tool, pinned)
     # Around the highest local peaks, samples at a quarter of the uniform spacing.
     need = np.maximum(rv_t, np.sqrt(ra_t))
     extra = peak_samples(t_chk, need, law.duration / (m - 1), law.duration)
     inner = ps.jumps
     if extra.size:       # appended: only the breakpoints' crossing times need the samples in order
         more = _ratios(ps, law, extra, vmax, amax, tool, pinned)
-        t_chk, s, sd, sdd, rv_t, ra_t = (np.concatenate([u, v]) for u, v in zip((t_chk, s, sd, sdd, rv_t, ra_t),
-                                                                              (extra, *more)))
+        t_chk, s, sd, sdd, rv_t, ra_t, need = (
+            np.concatenate([u, v]) for u, v in zip((t_chk, s, sd, sdd, rv_t, ra_t, need),
+                                                   (extra, *more, np.maximum(more[3], np.sqrt(more[4])))))
         if inner.size:
             order = np.argsort(t_chk, kind='stable')
-            t_chk, s, sd, sdd, rv_t, ra_t = (u[order] for u in (t_chk, s, sd, sdd, rv_t, ra_t))
+            t_chk, s, sd, sdd, rv_t, ra_t, need = (u[order] for u in (t_chk, s, sd, sdd, rv_t, ra_t, need))
     rv, ra = float(rv_t.max()), float(ra_t.max())
     # The samples closest to a limit are verified with the exact path derivatives.
-    need = np.maximum(rv_t, np.sqrt(ra_t))
     k = max(1, min(EXACT_CHECKS, need.size))
     top = np.argpartition(need, -k)[-k:]
     q_x, a_x, b_x = (np.asarray(v, dtype=float) for v in path.evaluate(s[top], order=2))

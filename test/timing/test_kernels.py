@@ -189,7 +189,7 @@ def test_search_grid_is_the_numpy_grid(monkeypatch):
         seen = _search_checks(path, monkeypatch, **kw)
         assert seen
         for checker, law in seen[::3]:
-            got = kernels.box_search(law.tables, checker.ps.kernel_tables3, checker._limits, box_check._UNIFORM_S,
+            got = kernels.box_search(law.tables, checker.ps.kernel_tables3, checker._limits, box_check.UNIFORM_S_PINNED,
                                      checker._samples(False), 2 * box_check.SEARCH_SAMPLES)
             checker._last.clear()
             with kernels.numpy_only():
@@ -331,7 +331,7 @@ def test_search_maxima_are_the_search_grid_maxima(monkeypatch):
         for checker, law in _search_checks(path, monkeypatch, **kw)[::4]:
             pieces = list(zip(law.s_start.tolist(), law.stars))
             tables = star_tables(pieces)
-            args = (tables, law.width, checker.ps.kernel_tables3, checker._limits, box_check._UNIFORM_S,
+            args = (tables, law.width, checker.ps.kernel_tables3, checker._limits, box_check.UNIFORM_S_PINNED,
                     checker._samples(False), 2 * box_check.SEARCH_SAMPLES)
             grid = kernels.box_search(law.tables, *args[2:])
             want = tuple(float(r.max()) for r in grid[5:8])
@@ -392,3 +392,33 @@ def test_scale_floor_is_below_every_law_tried(monkeypatch):
             time_parameterize(path, max_jerk=np.asarray(kw['max_jerk']) * f)
     assert len([t for t in tried if t[0] is not None]) > 50
     assert all(total >= floor for floor, total in tried if floor is not None)
+
+
+def test_smoothed_law_check_grid_is_the_numpy_grid():
+    # gp_piecewise_check builds smoothing._stretch's grid itself (uniform times, the rests between
+    # pieces, np.interp of the s-uniform samples; sorted, each once): the same times bit for bit,
+    # the same law there, and the ratios of _ratios within round-off
+    from geodesic_planner.timing import smoothing
+    from geodesic_planner.timing.checks import UNIFORM_S, UNIFORM_S_PINNED, distinct_times
+    robot, planner, q_a, T_a, T_b = _ur5e_line_path()
+    cases = [path for _, path, _ in _law_cases()] + [planner.plan(T_a, T_b, start_joints=q_a)]
+    for path in cases:
+        law = time_parameterize(path).scaling
+        ps = sample_path(path, 60)
+        vmax, amax = np.full(ps.aR.shape[1], 1.3), np.full(ps.aR.shape[1], 2.1)
+        for m in (10, 1000, 3001):
+            t, s, sd, sdd, rv, ra = kernels.piecewise_check(
+                law.kernel_tables, kernels.Pinned(law.node_s, law.node_t), ps.kernel_tables,
+                kernels.limit_tables(vmax, amax), UNIFORM_S_PINNED, m)
+            want = np.linspace(0.0, law.duration, m)
+            if law.n_pieces > 1:
+                want = np.union1d(want, law.t_offsets)
+            want = distinct_times(np.concatenate([want, law.times_at(UNIFORM_S)]))
+            np.testing.assert_array_equal(t, want)
+            with kernels.numpy_only():
+                cols = smoothing._ratios(ps, law, want, vmax, amax, None, None)
+            for g, w in zip((s, sd, sdd), cols[:3]):
+                np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-12)
+            for g, w in zip((rv, ra), cols[3:]):
+                np.testing.assert_allclose(g, w, rtol=1e-9, atol=1e-12)
+    assert any(time_parameterize(p).scaling.n_pieces > 1 for p in cases)
