@@ -26,6 +26,7 @@
  *                          box-filtered law, the law there and its ratios, in one call
  *   gp_merge_columns       box_check.BoxCheck._dense: two sample blocks merged by time (stable argsort)
  *   gp_point_ratios        box_check.BoxCheck._max_ratios: the largest ratios of exact samples
+ *   gp_peak_samples        checks.peak_samples (more check times around the highest peaks)
  *   gp_box_search_max      the same check's largest ratios only, from the window, stopping early
  *                          once they exceed bounds (jerk._best_width)
  *

@@ -728,3 +728,48 @@ void gp_point_ratios(idx_t K, idx_t dof, const double *a, const double *b, const
     }
     out[0] = rv; out[1] = ra; out[2] = rj;
 }
+
+/* checks.peak_samples: at sorted times t (n,) with speed factors need (n,), the local peaks
+ * (need[i] >= both neighbours), the k highest of them (ties: the later one, as the last k of a
+ * stable ascending argsort), and around each, the inner `per` of per + 2 points evenly spaced
+ * from -spacing to +spacing (np.linspace) added to its time and clipped to [0, duration]; all of
+ * them sorted into out (at most k per). scratch: 2 k doubles. Returns the count. */
+idx_t gp_peak_samples(idx_t n, const double *t, const double *need, double spacing, double duration, idx_t k,
+                      idx_t per, double *scratch, double *out)
+{
+    double *top_need = scratch, *top_idx = scratch + k;      /* ascending by (need, index) */
+    idx_t count = 0;
+    for (idx_t i = 1; i + 1 < n; ++i) {
+        const double v = need[i];
+        if (!(v >= need[i - 1] && v >= need[i + 1])) continue;
+        /* (v, i) beats the smallest kept when v >= it: i is the later index */
+        if (count == k && !(v >= top_need[0])) continue;
+        idx_t pos;
+        if (count < k) {
+            pos = count++;
+        } else {
+            for (idx_t j = 1; j < k; ++j) { top_need[j - 1] = top_need[j]; top_idx[j - 1] = top_idx[j]; }
+            pos = k - 1;
+        }
+        while (pos > 0 && !(top_need[pos - 1] <= v)) {       /* v above a kept one: insert below it */
+            top_need[pos] = top_need[pos - 1];
+            top_idx[pos] = top_idx[pos - 1];
+            --pos;
+        }
+        top_need[pos] = v;
+        top_idx[pos] = (double)i;
+    }
+    const double start = -spacing, step = (spacing - start) / (double)(per + 1);
+    idx_t m = 0;
+    for (idx_t c = 0; c < count; ++c) {
+        const double tc = t[(idx_t)top_idx[c]];
+        for (idx_t j = 1; j <= per; ++j) out[m++] = clampd(tc + ((double)j * step + start), 0.0, duration);
+    }
+    for (idx_t i = 1; i < m; ++i) {                       /* insertion sort: at most k per values */
+        const double x = out[i];
+        idx_t j = i;
+        while (j > 0 && out[j - 1] > x) { out[j] = out[j - 1]; --j; }
+        out[j] = x;
+    }
+    return m;
+}

@@ -49,6 +49,7 @@ SIGNATURES: dict[str, list[Any]] = {
     'gp_box_search_grid': [_I, _I, _P, _I, _I, _I] + [_P] * 9 + [_I, _P, _I] + [_P] * 7,
     'gp_merge_columns': [_I, _I, _I, _P, _I, _I, _P, _P, _P],
     'gp_point_ratios': [_I, _I] + [_P] * 10,
+    'gp_peak_samples': [_I, _P, _P, _D, _D, _I, _I, _P, _P],
     'gp_piecewise_check': [_I, _I, _P, _I, _P, _P, _I, _P, _P, _D, _I, _P, _P, _I, _P, _I] + [_P] * 5,
     'gp_box_search_max': [_I, _I, _P, _I, _I] + [_P] * 8 + [_I, _P, _I] + [_P] * 6 + [_D, _I] + [_P] * 9,
 }
@@ -71,6 +72,7 @@ def _load() -> tuple[ctypes.CDLL | None, str]:
     lib.gp_box_search_grid.restype = _I
     lib.gp_box_search_max.restype = _I
     lib.gp_piecewise_check.restype = _I
+    lib.gp_peak_samples.restype = _I
     return lib, 'on'
 
 

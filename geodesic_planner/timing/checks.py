@@ -66,11 +66,14 @@ def range_max(n: int, lo: np.ndarray, hi: np.ndarray, value: np.ndarray) -> np.n
 
 def peak_samples(t: np.ndarray, need: np.ndarray, spacing: float, duration: float) -> np.ndarray:
     """More check times (sorted) around the PEAK_CHECKS highest local peaks of ``need`` at sorted
-    times ``t``: PEAK_SAMPLES within ``spacing`` on either side of each, in [0, duration]."""
+    times ``t``: PEAK_SAMPLES within ``spacing`` on either side of each, in [0, duration]. Equal
+    peaks at the cut: the later ones (a stable order, the same on every machine and compiled)."""
+    if kernels.active():
+        return kernels.peak_samples(t, need, spacing, duration, PEAK_CHECKS, PEAK_SAMPLES)
     peak = np.flatnonzero((need[1:-1] >= need[:-2]) & (need[1:-1] >= need[2:])) + 1
     if not peak.size:
         return np.zeros(0)
-    peak = peak[np.argsort(need[peak])[-PEAK_CHECKS:]]
+    peak = peak[np.argsort(need[peak], kind='stable')[-PEAK_CHECKS:]]
     offsets = np.linspace(-spacing, spacing, PEAK_SAMPLES + 2)[1:-1]
     return np.sort(np.clip((t[peak][:, None] + offsets).reshape(-1), 0.0, duration))
 

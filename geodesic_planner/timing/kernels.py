@@ -21,8 +21,8 @@ from ..core.compiled import f64 as _f64
 
 __all__ = ['REASON', 'LawTables', 'Pinned', 'active', 'backward_pass', 'box_search', 'box_search_max', 'box_tables',
            'build_piecewise', 'evaluate', 'forward_pass', 'hermite_coef', 'hermite_ratios', 'limit_tables',
-           'merge_columns', 'numpy_only', 'path_tables', 'piecewise_check', 'piecewise_tables', 'point_ratios',
-           'ratios', 'refine', 'suspects']
+           'merge_columns', 'numpy_only', 'path_tables', 'peak_samples', 'piecewise_check', 'piecewise_tables',
+           'point_ratios', 'ratios', 'refine', 'suspects']
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,6 +166,18 @@ def point_ratios(a: np.ndarray, b: np.ndarray, c: np.ndarray, sd: np.ndarray, sd
     _LIB.gp_point_ratios(arrays[0].shape[0], arrays[0].shape[1], *(v.ctypes.data for v in arrays), *limits.ptrs,
                          out.ctypes.data)
     return float(out[0]), float(out[1]), float(out[2])
+
+
+def peak_samples(t: np.ndarray, need: np.ndarray, spacing: float, duration: float, peaks: int, per: int
+                 ) -> np.ndarray:
+    """:func:`.checks.peak_samples` compiled (``peaks`` highest local peaks, ``per`` samples each)."""
+    assert _LIB is not None
+    t, need = _f64(t), _f64(need)
+    out = np.empty(peaks * per)
+    work = np.empty(2 * peaks)
+    m = _LIB.gp_peak_samples(t.size, t.ctypes.data, need.ctypes.data, float(spacing), float(duration), peaks, per,
+                             work.ctypes.data, out.ctypes.data)
+    return out[:m]
 
 
 def merge_columns(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -422,3 +422,21 @@ def test_smoothed_law_check_grid_is_the_numpy_grid():
             for g, w in zip((rv, ra), cols[3:]):
                 np.testing.assert_allclose(g, w, rtol=1e-9, atol=1e-12)
     assert any(time_parameterize(p).scaling.n_pieces > 1 for p in cases)
+
+
+def test_peak_samples_match_numpy():
+    # gp_peak_samples against the numpy code (stable order: equal peaks at the cut, the later
+    # ones), on random needs, plateaus (many equal peaks), no peak, a single peak and NaN
+    from geodesic_planner.timing import checks
+    rng = np.random.default_rng(11)
+    t = np.sort(rng.uniform(0.0, 2.0, 400))
+    cases = [rng.uniform(0.0, 1.0, 400), np.round(rng.uniform(0.0, 1.0, 400), 1),    # many ties
+             np.ones(400), np.linspace(0.0, 1.0, 400), np.r_[0.0, 1.0, np.zeros(398)],
+             np.where(rng.uniform(size=400) < 0.1, np.nan, rng.uniform(size=400))]
+    for need in cases:
+        for spacing in (1e-3, 0.3):
+            got = checks.peak_samples(t, need, spacing, 2.0)
+            with kernels.numpy_only():
+                want = checks.peak_samples(t, need, spacing, 2.0)
+            np.testing.assert_array_equal(got, want)
+    assert checks.peak_samples(t[:2], np.ones(2), 0.1, 2.0).size == 0
