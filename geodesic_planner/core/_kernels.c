@@ -11,8 +11,8 @@
  *   gp_geodesic_jerk       core.geodesic.GeodesicEquations.jerk (q'' and q''' along a geodesic)
  *   gp_build_piecewise     smoothing.build_piecewise_law (the smoothed law's tables)
  *   gp_piecewise_evaluate  smoothing.PiecewiseLaw.evaluate (the smoothed law s(t) and derivatives)
- *   gp_piecewise_check     smoothing._stretch: the smoothed law's check grid, the law there and its
- *                          ratios, in one call
+ *   gp_piecewise_check     smooth_check.check_law: the smoothed law's check grid, the law there
+ *                          and its ratios, in one call
  *   gp_box_evaluate        box_filter.BoxLaw.evaluate (the box-filtered law of the jerk law)
  *   gp_suspects            sampling._interpolation_suspects (where the samples need bisecting)
  *   gp_hermite_coef        sampling.PathSamples.coef (the cubic Hermite coefficients of the steps)

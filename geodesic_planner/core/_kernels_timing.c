@@ -510,11 +510,11 @@ static idx_t merged_grid(idx_t m, double duration, idx_t n_us, const double *us,
     return sort_distinct(t, M);
 }
 
-/* The smoothed law's dense check (smoothing._stretch): the grid (m uniform times on [0, duration],
- * the rests offs (L + 1,) when L > 1, the times np.interp(us, node_s, node_t) at which it passes
- * us (n_us,); sorted, each once), the law there (tables as gp_piecewise_evaluate) and the ratios
- * of gp_hermite_ratios without the jerk. scratch: m + n_us + L + 1 doubles. out (6 or more,
- * cap = m + n_us + L + 1): rows t, s, sd, sdd, rv, ra. Returns the number of samples. */
+/* The smoothed law's dense check (smooth_check.check_law): the grid (m uniform times on [0,
+ * duration], the rests offs (L + 1,) when L > 1, the times np.interp(us, node_s, node_t) at which
+ * it passes us (n_us,); sorted, each once), the law there (tables as gp_piecewise_evaluate) and
+ * the ratios of gp_hermite_ratios without the jerk. scratch: m + n_us + L + 1 doubles. out (6 or
+ * more, cap = m + n_us + L + 1): rows t, s, sd, sdd, rv, ra. Returns the number of samples. */
 idx_t gp_piecewise_check(idx_t m, idx_t n_us, const double *us, idx_t nn, const double *node_s,
                          const double *node_t, idx_t L, const double *offs, const double *pieces, double key_step,
                          idx_t S, const double *seg_key, const double *seg, idx_t n, const double *nodes, idx_t dof,

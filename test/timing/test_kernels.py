@@ -395,10 +395,10 @@ def test_scale_floor_is_below_every_law_tried(monkeypatch):
 
 
 def test_smoothed_law_check_grid_is_the_numpy_grid():
-    # gp_piecewise_check builds smoothing._stretch's grid itself (uniform times, the rests between
-    # pieces, np.interp of the s-uniform samples; sorted, each once): the same times bit for bit,
-    # the same law there, and the ratios of _ratios within round-off
-    from geodesic_planner.timing import smoothing
+    # gp_piecewise_check builds smooth_check.check_law's grid itself (uniform times, the rests
+    # between pieces, np.interp of the s-uniform samples; sorted, each once): the same times bit
+    # for bit, the same law there, and the ratios of _ratios within round-off
+    from geodesic_planner.timing import smooth_check
     from geodesic_planner.timing.checks import UNIFORM_S, UNIFORM_S_PINNED, distinct_times
     robot, planner, q_a, T_a, T_b = _ur5e_line_path()
     cases = [path for _, path, _ in _law_cases()] + [planner.plan(T_a, T_b, start_joints=q_a)]
@@ -416,7 +416,7 @@ def test_smoothed_law_check_grid_is_the_numpy_grid():
             want = distinct_times(np.concatenate([want, law.times_at(UNIFORM_S)]))
             np.testing.assert_array_equal(t, want)
             with kernels.numpy_only():
-                cols = smoothing._ratios(ps, law, want, vmax, amax, None, None)
+                cols = smooth_check._ratios(ps, law, want, vmax, amax, None, None)
             for g, w in zip((s, sd, sdd), cols[:3]):
                 np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-12)
             for g, w in zip((rv, ra), cols[3:]):
