@@ -81,7 +81,8 @@ class BoxCheck:
         if kernels.active() and tables is not None and self.tool is None:
             target = 1.0 - CHECK_MARGIN
             t_star = sum(p.t_star for _, p in pieces)
-            # on the stretch: over Lam, stretch x duration > above (duration within round-off of this sum)
+            # a stretch over lam makes stretch x duration > above for sure (the law's duration is
+            # this sum up to round-off; 1e-9 of margin), so the ratios' bounds are lam's powers
             lam = above / (t_star + float(width.sum())) * (1.0 + 1e-9)
             rv, ra, rj, duration, peak, stopped = kernels.box_search_max(
                 tables, width, self.ps.kernel_tables3, self._limits, UNIFORM_S_PINNED, self._samples(False),
