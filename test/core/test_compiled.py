@@ -96,37 +96,36 @@ def test_jacobian_rate_matches_numpy_and_finite_differences():
     np.testing.assert_allclose(got, fd, atol=1e-6)
 
 
-@pytest.mark.parametrize('name,metric', [('ur5e', {}), ('ur5e', {'position_weight': 2.0, 'orientation_weight': 0.5}),
-                                         ('panda', {'epsilon': 1e-3}), ('rrpp', {}), ('planar_3r', {})])
-def test_geodesic_acceleration_matches_numpy(name, metric):
+def _equations(name, metric, seed, n):
+    """A factory of fresh geodesic equations (nothing remembered) of robot ``name`` under
+    ``metric``, and n random joint positions (within the limits, |q| <= 2) and velocities."""
     from geodesic_planner import load_robot
     from geodesic_planner.core.geodesic import GeodesicEquations
     from geodesic_planner.core.metric import Metric
     robot = load_robot(name)
-    rng = np.random.default_rng(13)
+    rng = np.random.default_rng(seed)
     lo, hi = np.maximum(robot.lower, -2.0), np.minimum(robot.upper, 2.0)
-    q = rng.uniform(lo, hi, (200, robot.dof))
-    v = rng.normal(size=(200, robot.dof))
-    got = GeodesicEquations(robot, Metric(**metric)).acceleration(q, v)     # a fresh one: nothing remembered
+    q = rng.uniform(lo, hi, (n, robot.dof))
+    return (lambda: GeodesicEquations(robot, Metric(**metric))), q, rng.normal(size=(n, robot.dof))
+
+
+@pytest.mark.parametrize('name,metric', [('ur5e', {}), ('ur5e', {'position_weight': 2.0, 'orientation_weight': 0.5}),
+                                         ('panda', {'epsilon': 1e-3}), ('rrpp', {}), ('planar_3r', {})])
+def test_geodesic_acceleration_matches_numpy(name, metric):
+    fresh, q, v = _equations(name, metric, 13, 200)
+    got = fresh().acceleration(q, v)
     with compiled.numpy_only():
-        want = GeodesicEquations(robot, Metric(**metric)).acceleration(q, v)
+        want = fresh().acceleration(q, v)
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
 
 
 @pytest.mark.parametrize('name,metric', [('ur5e', {}), ('panda', {'epsilon': 1e-3}), ('rrpp', {}), ('planar_3r', {})])
 def test_geodesic_jerk_matches_numpy_and_the_acceleration_s_derivative(name, metric):
-    from geodesic_planner import load_robot
-    from geodesic_planner.core.geodesic import GeodesicEquations
-    from geodesic_planner.core.metric import Metric
-    robot = load_robot(name)
-    rng = np.random.default_rng(17)
-    lo, hi = np.maximum(robot.lower, -2.0), np.minimum(robot.upper, 2.0)
-    q = rng.uniform(lo, hi, (100, robot.dof))
-    v = rng.normal(size=(100, robot.dof))
-    eq = GeodesicEquations(robot, Metric(**metric))
+    fresh, q, v = _equations(name, metric, 17, 100)
+    eq = fresh()
     a, j = eq.jerk(q, v)
     with compiled.numpy_only():
-        a0, j0 = GeodesicEquations(robot, Metric(**metric)).jerk(q, v)
+        a0, j0 = fresh().jerk(q, v)
     np.testing.assert_allclose(a, a0, rtol=1e-9, atol=1e-9 * np.abs(a0).max())
     np.testing.assert_allclose(j, j0, rtol=1e-9, atol=1e-9 * np.abs(j0).max())
     # independent: q''' = d/ds a(q(s), q'(s)) = da/dq q' + da/dq' q'', central differences of the
