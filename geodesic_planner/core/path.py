@@ -70,10 +70,11 @@ class JointPath(ABC):
         """
 
     def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, ...]:
-        """q and its first three s-derivatives at s, for sampling a time law: from the path's own
-        interpolant where it has one (a solver's spline: q and dq/ds are the path's, the second and
-        third derivatives agree with :meth:`evaluate` within the solver's tolerance, at a fraction
-        of the cost), else :meth:`evaluate`. Each (len(s), dof); rad or m."""
+        """q and its first three s-derivatives at s, for sampling a time law and for the
+        trajectory's motion: from the path's own interpolant where it has one (a solver's spline:
+        q and dq/ds are the path's, and the second and third derivatives are theirs, within the
+        solver's tolerance of :meth:`evaluate`'s, at a fraction of the cost), else :meth:`evaluate`.
+        Each (len(s), dof); rad or m."""
         return self.evaluate(s, 3)
 
     @property

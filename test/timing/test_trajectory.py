@@ -42,3 +42,24 @@ def test_checked_samples_pass_the_controller_rules():
     traj = time_parameterize(curved())
     t, q, dq, ddq = traj.sample(0.01, check=True)
     assert t[-1] == traj.duration and np.all(dq[-1] == 0.0)
+
+
+def test_tiny_move_at_the_elbow_singularity_keeps_its_limits():
+    # A 2-microradian ur5e move next to the elbow singularity (the slow fuzz case of
+    # test_fuzz_singular_slow): the solver's spline, whose positions the trajectory gives, has a
+    # q'' 2e-8 away from the geodesic equations' between its mesh nodes, and on so short a path
+    # sdot^2 reaches 1e6. The trajectory's accelerations are the derivatives of its velocities
+    # (the spline's), the ones the law was checked on: within the limits, and consistent.
+    from geodesic_planner import GeodesicPlanner, load_robot
+    robot = load_robot('ur5e')
+    q_a = np.array([0.0, 0.0, 0.01, 0.0, 1.0, 0.0])
+    q_b = q_a + np.array([0.0, 0.0, -2e-6, -1e-6, 0.0, 0.0])
+    path = GeodesicPlanner(robot).plan(None, None, q_a, q_b)
+    traj = path.timed()
+    t = np.linspace(0.0, traj.duration, 4001)
+    q, dq, ddq = traj.at_time(t)
+    assert (np.abs(dq) / robot.max_velocity).max() <= 1.0
+    assert (np.abs(ddq) / robot.max_acceleration).max() <= 1.0       # 1.00017 with the equations' q''
+    # ddq is the time derivative of dq (central differences, interior samples)
+    fd = (dq[2:] - dq[:-2]) / (t[2:] - t[:-2])[:, None]
+    np.testing.assert_allclose(ddq[1:-1], fd, atol=1e-3 * robot.max_acceleration.max())
