@@ -34,6 +34,12 @@ __all__ = ['SEARCH_SAMPLES', 'BoxCheck']
 SEARCH_SAMPLES = 250
 
 
+def _stretch_of(rv: float, ra: float, rj: float) -> float:
+    """The uniform time stretch (>= 1) that brings the largest v, a, j ratios within 1 - CHECK_MARGIN."""
+    target = 1.0 - CHECK_MARGIN
+    return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target))
+
+
 def _crossing_times(law: BoxLaw, t: np.ndarray, s: np.ndarray, targets: np.ndarray,
                     newton: int = 6) -> np.ndarray:
     """Times at which the (monotone) law passes ``targets``: bracketed on samples, interpolated
@@ -68,9 +74,7 @@ class BoxCheck:
         """Smallest uniform time stretch (>= 1) keeping ``law`` within 1 - CHECK_MARGIN of every
         limit; ``exact``: on the full grid, the samples nearest a limit re-checked with
         ``path.evaluate`` (else on the search grid with the interpolated derivatives alone)."""
-        rv, ra, rj = self.ratios(law, exact)
-        target = 1.0 - CHECK_MARGIN
-        return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target))
+        return _stretch_of(*self.ratios(law, exact))
 
     def search(self, pieces: list[tuple[float, StarPiece]], tables: kernels.Pinned | None, width: np.ndarray,
                above: float = math.inf) -> tuple[float, float, bool]:
@@ -91,7 +95,7 @@ class BoxCheck:
             if math.isfinite(duration) and duration > 0.0:
                 if not stopped:
                     self._peak[0] = peak
-                return max(1.0, rv / target, math.sqrt(ra / target), math.cbrt(rj / target)), duration, not stopped
+                return _stretch_of(rv, ra, rj), duration, not stopped
         law = build_box_law(pieces, width, tables)
         return self.stretch(law), law.duration, True
 
@@ -112,17 +116,20 @@ class BoxCheck:
         return kernels.Pinned(self.ps.s[self.ps.jumps3], *self._sides, *self._plain_limits.arrays)
 
     @functools.cached_property
-    def _plain_limits(self) -> kernels.Pinned:
-        """vmax, amax, jmax (infinite without a jerk limit) for :func:`.kernels.point_ratios`."""
+    def _jmax(self) -> np.ndarray:
+        """The jerk limits (dof,), infinite without them."""
         lim = self.limits
-        jmax = lim.max_jerk if lim.max_jerk is not None else np.full(lim.max_velocity.size, np.inf)
-        return kernels.Pinned(lim.max_velocity, lim.max_acceleration, jmax)
+        return lim.max_jerk if lim.max_jerk is not None else np.full(lim.max_velocity.size, np.inf)
+
+    @functools.cached_property
+    def _plain_limits(self) -> kernels.Pinned:
+        """vmax, amax, jmax for :func:`.kernels.point_ratios`."""
+        return kernels.Pinned(self.limits.max_velocity, self.limits.max_acceleration, self._jmax)
 
     @functools.cached_property
     def _limits(self) -> kernels.Pinned:
-        lim = self.limits
-        jmax = lim.max_jerk if lim.max_jerk is not None else np.full(lim.max_velocity.size, np.inf)
-        return kernels.limit_tables(lim.max_velocity, lim.max_acceleration, jmax)
+        """vmax, amax, jmax as the kernels' reciprocals (:func:`.kernels.limit_tables`)."""
+        return kernels.limit_tables(self.limits.max_velocity, self.limits.max_acceleration, self._jmax)
 
     def need(self, law: BoxLaw) -> tuple[np.ndarray, np.ndarray]:
         """Check times (M,) and each one's speed factor over the limits (interpolated path
@@ -176,8 +183,7 @@ class BoxCheck:
                                                                       np.ndarray, np.ndarray, np.ndarray]:
         """The dense grid of :meth:`_dense` in numpy (the reference of the compiled one)."""
         ps, lim = self.ps, self.limits
-        vmax, amax = lim.max_velocity, lim.max_acceleration
-        jmax = lim.max_jerk if lim.max_jerk is not None else np.full(vmax.size, np.inf)
+        vmax, amax, jmax = lim.max_velocity, lim.max_acceleration, self._jmax
         ev = law.jerk_events()
         gap = np.diff(ev)
         keep = gap > 0
@@ -231,15 +237,7 @@ class BoxCheck:
         """Largest |v| / vmax, |a| / amax (tool speed included in v) and |j| / jmax of ``law``;
         ``exact``: see :meth:`stretch`."""
         ps = self.ps
-        if not exact and kernels.active() and math.isfinite(law.duration) and law.duration > 0.0:
-            # the search grid, the law there and its ratios in one compiled call (as _dense)
-            t, s, sd, sdd, sddd, rv_t, ra_t, rj_t = kernels.box_search(
-                law.tables, ps.kernel_tables3, self._limits, UNIFORM_S_PINNED, self._samples(False),
-                2 * SEARCH_SAMPLES)[:8]
-            if self.tool is not None:
-                rv_t = np.maximum(rv_t, self.tool.ratios(s, sd))
-        else:
-            t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need = self._dense(law, full=exact)
+        t, (s, sd, sdd, sddd), rv_t, ra_t, rj_t, need = self._dense(law, full=exact)
         rv, ra, rj = float(rv_t.max()), float(ra_t.max()), float(rj_t.max())
         # The samples closest to a limit, with the exact path derivatives (the law kept; the
         # search compares widths on the interpolated derivatives alone).
@@ -272,8 +270,7 @@ class BoxCheck:
         if kernels.active():
             rv, ra, rj = kernels.point_ratios(a, b, c, sd, sdd, sddd, self._plain_limits)
             return max(prev[0], rv), max(prev[1], ra), max(prev[2], rj)
-        lim = self.limits
-        jmax = lim.max_jerk if lim.max_jerk is not None else np.full(a.shape[1], np.inf)
+        lim, jmax = self.limits, self._jmax
         sd, sdd, sddd = sd[:, None], sdd[:, None], sddd[:, None]
         return (max(prev[0], float(np.max(np.abs(a * sd) / lim.max_velocity))),
                 max(prev[1], float(np.max(np.abs(a * sdd + b * sd**2) / lim.max_acceleration))),
