@@ -269,7 +269,7 @@ def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checke
         near = [j for j in (i - 1, i, i + 1) if 0 <= j < len(grid)]
         best = math.inf
         for k in near:      # in order; past the shortest so far, a check may stop early
-            best = min(best, total(grid[k], above=best) if known(grid[k]) == math.inf else known(grid[k]))
+            best = min(best, total(grid[k], above=best))
         j = min(near, key=lambda k: cache[grid[k]][0])
         if j == i:
             break

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..core.cancel import checkpoint
 from ..core.errors import LimitError
+from ..core.path import JointPath
 from . import kernels
 from ._arrays import clip
 
@@ -191,11 +192,17 @@ class PathSamples:
 
 
 
-def _derivatives(path: PathLike, s: np.ndarray) -> tuple[np.ndarray, ...]:
-    """q and three s-derivatives at s: ``path.interpolate`` (its solver's spline) where the path
-    has it, else ``path.evaluate``."""
-    fn = getattr(path, 'interpolate', None)
-    return tuple(np.asarray(v, dtype=float) for v in (fn(s) if fn is not None else path.evaluate(s)))
+def path_derivatives(path: PathLike, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
+    """q and its first ``order`` s-derivatives at s, float arrays (len(s), dof): from the path's
+    own interpolant where it has one (a solver's spline, :meth:`.JointPath.interpolate`: the
+    positions a trajectory gives and their derivatives, the ones the laws are checked on), else
+    ``path.evaluate``."""
+    own = getattr(type(path), 'interpolate', None)
+    if own is not None and own is not JointPath.interpolate:
+        out = tuple(path.interpolate(s))[:order + 1]      # type: ignore[attr-defined]
+    else:
+        out = tuple(path.evaluate(s, order=order))
+    return tuple(np.asarray(v, dtype=float) for v in out)
 
 
 def sample_path(path: PathLike, grid_points: int) -> PathSamples:
@@ -218,7 +225,7 @@ def sample_path(path: PathLike, grid_points: int) -> PathSamples:
     else:
         nodes = np.linspace(0.0, 1.0, grid_points + 1)
     s_eval = np.concatenate([nodes, interior - _LEFT_EPS])
-    _, a, b, c = _derivatives(path, s_eval)
+    _, a, b, c = path_derivatives(path, s_eval)
     if a.ndim != 2 or a.shape[0] != s_eval.size:
         raise LimitError(f'path.evaluate returned shape {a.shape}, expected ({s_eval.size}, dof)')
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(c))):
@@ -287,7 +294,7 @@ def refine_adaptively(path: PathLike, ps: PathSamples, tol: float = 1e-5, max_ro
             break
         idx = np.flatnonzero(bad)[: max_nodes - count]
         s_new = 0.5 * (s_l[idx] + s_r[idx])
-        _, a, b, c = _derivatives(path, s_new)
+        _, a, b, c = path_derivatives(path, s_new)
         new = np.hstack([a, b, c, a, b, c])
         if not np.all(np.isfinite(new)):
             raise LimitError('path derivatives contain NaN or inf')

@@ -10,19 +10,9 @@ import numpy.typing as npt
 
 from ..core.cancel import checkpoint
 from ..core.errors import LimitError
-from ..core.path import JointPath
 from ._arrays import clip
+from .sampling import path_derivatives
 from .validate import check_trajectory
-
-
-def _derivatives(path: object, s: np.ndarray, order: int) -> tuple[np.ndarray, ...]:
-    """q and its first ``order`` s-derivatives at s: from the path's own interpolant where it has
-    one (a solver's spline, :meth:`.JointPath.interpolate`: the positions the trajectory gives
-    and their derivatives, the ones the law was checked on), else ``path.evaluate``."""
-    own = getattr(type(path), 'interpolate', None)
-    if own is not None and own is not JointPath.interpolate:
-        return tuple(path.interpolate(s))[:order + 1]           # type: ignore[attr-defined]
-    return tuple(path.evaluate(s, order=order))                  # type: ignore[attr-defined]
 
 #: Samples evaluated at once by :meth:`Trajectory.sample` between two cancellation checkpoints
 #: (tens of ms of work; the values do not depend on it).
@@ -111,14 +101,14 @@ class Trajectory:
             (q, dq, ddq), each (M, dof); rad (m), rad/s (m/s), rad/s^2 (m/s^2).
         """
         s, sd, sdd = self.s_of_t(t)
-        q, q1, q2 = _derivatives(self.path, s, 2)
+        q, q1, q2 = path_derivatives(self.path, s, 2)
         q1 = np.asarray(q1)
         return np.asarray(q), q1 * sd[:, None], q1 * sdd[:, None] + np.asarray(q2) * (sd**2)[:, None]
 
     def jerk_at_time(self, t: npt.ArrayLike) -> np.ndarray:
         """Joint jerk d3q/dt3 at times ``t`` (M,) -> (M, dof); rad/s^3 (m/s^3)."""
         s, sd, sdd, sddd = self._s_all(t)
-        _, q1, q2, q3 = _derivatives(self.path, s, 3)
+        _, q1, q2, q3 = path_derivatives(self.path, s, 3)
         return (np.asarray(q1) * sddd[:, None] + 3.0 * np.asarray(q2) * (sd * sdd)[:, None]
                 + np.asarray(q3) * (sd**3)[:, None])
 
