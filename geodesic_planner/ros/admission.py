@@ -8,8 +8,9 @@ the node cannot take is answered and visible instead of piling up unseen in DDS.
 plan one at a time, in arrival order (:meth:`PlanQueue.wait_turn`); one that waits longer than its
 deadline gives its turn up and is answered as timed out.
 
-The holder of the turn plans through :meth:`PlanWorker.run`: the computation runs in a worker
-thread, and the caller waits at most its timeout. A computation still running then is abandoned:
+The holder of the turn plans through :meth:`PlanWorker.run`: the computation runs in the worker's
+thread (one, kept for the node's life: its per-thread scratch buffers, :func:`~geodesic_planner.core.compiled.scratch`,
+serve every plan), and the caller waits at most its timeout. A computation still running then is abandoned:
 its :class:`~geodesic_planner.core.cancel.CancelToken` is cancelled, so it stops at its next
 checkpoint, and whatever it would still commit (publish) is refused. The next run first waits
 for that worker to end, at most ``stop_wait`` s, so one pathological request costs the next one
@@ -17,8 +18,10 @@ its cancellation time, never its whole timeout. No ROS here: plain threads.
 """
 from __future__ import annotations
 
+import queue
 import threading
 import time
+import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Generic, TypeVar
@@ -124,8 +127,25 @@ class PlanWorker:
     def __init__(self, stop_wait: float, on_stopped: Callable[[float], object] = lambda _s: None) -> None:
         self.stop_wait = stop_wait
         self._on_stopped = on_stopped
-        self._running = threading.Lock()   # taken before a worker starts, released as it ends
+        self._running = threading.Lock()   # taken before a computation starts, released as it ends
         self._commit = threading.Lock()    # "commit" and "abandon" exclude each other
+        self._jobs: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
+        self._thread: threading.Thread | None = None   # started by the first run
+
+    def _serve(self) -> None:
+        """The worker thread: runs the computations handed to it, one at a time, forever (daemon)."""
+        while True:
+            job = self._jobs.get()
+            try:
+                job()
+            except Exception:  # noqa: BLE001 - an on_stopped that raised: reported, the thread serves on
+                traceback.print_exc()
+
+    def _start(self) -> None:
+        if self._thread is None or not self._thread.is_alive():
+            thread = threading.Thread(target=self._serve, name='geodesic_plan', daemon=True)
+            thread.start()
+            self._thread = thread
 
     def run(self, compute: Callable[[Callable[[Callable[[], object]], bool]], T], timeout: float) -> Run[T]:
         """Run ``compute`` in a worker, waiting at most ``timeout`` s for it (see the class).
@@ -155,16 +175,19 @@ class PlanWorker:
             except BaseException as err:  # noqa: BLE001 - handed to the caller (or dropped if abandoned)
                 box['error'] = err
             finally:
-                if token.cancelled_at is not None:
-                    self._on_stopped(time.monotonic() - token.cancelled_at)
-                self._running.release()
-                done.set()
+                try:
+                    if token.cancelled_at is not None:
+                        self._on_stopped(time.monotonic() - token.cancelled_at)
+                finally:      # even when on_stopped raises: the next run must not wait for this one
+                    self._running.release()
+                    done.set()
 
         try:
-            threading.Thread(target=work, name='geodesic_plan', daemon=True).start()
+            self._start()
         except BaseException:
             self._running.release()
             raise
+        self._jobs.put(work)
         if not done.wait(timeout):
             with self._commit:
                 state['abandoned'] = not state['committed']

@@ -19,7 +19,8 @@ Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default)
   and the reply), after at most 1 s for subscriptions the graph shows but that have not matched
   yet. Volatile on purpose: a controller that connects later must not execute an old plan.
 * topic ``~/path_markers`` (visualization_msgs/MarkerArray), reliable, transient_local, depth 1:
-  the tool path line strip and start/goal axes of the latest plan (RViz started later sees it).
+  the tool path line strip and start/goal axes of the latest plan (RViz started later sees it);
+  built only while a reader is matched (:mod:`~geodesic_planner.ros.path_markers`).
 * collisions: every plan is checked against the robot's own links and the scene; the reply gives
   ``min_clearance`` and ``ik_branch``; the scene: :mod:`~geodesic_planner.ros.scene_services`.
 * subscription ``/robot_description`` (std_msgs/String, reliable, transient local): the URDF
@@ -83,7 +84,6 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Header, String
 from trajectory_msgs.msg import JointTrajectory
-from visualization_msgs.msg import MarkerArray
 
 from ..core.collision import CollisionModel
 from ..core.errors import GeodesicPlannerError, quoted
@@ -93,6 +93,7 @@ from .admission import PlanQueue, PlanWorker, WorkerBusyError
 from .diagnostics import NodeStatus
 from .matching import MatchBeforePublish, matched_logger
 from .params import PLANNER_PARAMETERS
+from .path_markers import LatestPathMarkers
 from .joint_states import JointStateListener, RateLimitedWarnings
 from .scene_services import SceneServices
 from .sequence_service import SequenceService
@@ -137,11 +138,7 @@ class GeodesicPlannerNode(Node):
                 self, self.resolve_topic_name('~/joint_trajectory'),
                 on_count=lambda n: self.status.set(trajectory_subscriptions_matched=n)))
         self._await_subscriptions = MatchBeforePublish(self, self.trajectory_pub)
-        self.marker_pub = self.create_publisher(
-            MarkerArray, '~/path_markers',
-            QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                       reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.path_markers = LatestPathMarkers(self)    # built only for a matched reader
         # /joint_states: a hidden node spun in a thread of its own (ros/joint_states.py)
         self.joint_states = JointStateListener(
             self, self.resolve_topic_name('/joint_states'),
@@ -368,7 +365,7 @@ class GeodesicPlannerNode(Node):
             self.get_logger().error(f'plan failed ({CODE_NAMES.get(outcome.code, outcome.code)}, '
                                     f'{total_ms:.1f} ms): {outcome.message}')
             return outcome
-        self.marker_pub.publish(result.markers)
+        self.path_markers.offer(result.tool_poses, result.path.header.frame_id)
         blends = (f', blend deviation up to {max(result.blend_deviation):.2g} m'
                   if result.blend_deviation else '')
         self.get_logger().info(

@@ -81,3 +81,21 @@ def test_a_computation_that_ignores_cancellation_makes_the_next_run_busy() -> No
         worker.run(lambda commit: None, 5.0)
     release.set()
     assert worker.run(lambda commit: 'free again', 5.0).result == 'free again'
+
+
+def test_runs_share_one_thread_even_after_a_failed_callback(capfd: pytest.CaptureFixture[str]) -> None:
+    """One worker thread serves every run (its per-thread scratch buffers are reused), and an
+    ``on_stopped`` that raises is reported on stderr without ending it."""
+    def thread(commit: object) -> threading.Thread:
+        return threading.current_thread()
+
+    def raising(_seconds: float) -> None:
+        raise RuntimeError('on_stopped failed')
+
+    worker = PlanWorker(2.0, raising)
+    first = worker.run(thread, 5.0).result
+    assert first is not threading.current_thread() and worker.run(thread, 5.0).result is first
+    assert worker.run(spinning(), 0.05).abandoned      # its on_stopped raises in the worker thread
+    after = worker.run(thread, 5.0)
+    assert after.error is None and after.result is first
+    assert 'RuntimeError: on_stopped failed' in capfd.readouterr().err
