@@ -55,12 +55,16 @@ SIGNATURES: dict[str, list[Any]] = {
 }
 
 
-def _load() -> tuple[ctypes.CDLL | None, str]:
+def _load() -> tuple[ctypes.PyDLL | None, str]:
     if os.environ.get('GP_KERNELS', '').strip().lower() == 'numpy':
         return None, 'off: GP_KERNELS=numpy'
     try:
         from . import _kernels  # type: ignore[attr-defined]
-        lib = ctypes.CDLL(_kernels.__file__)
+        # PyDLL: a call keeps the GIL (the kernels never touch Python objects and take micro- to
+        # milliseconds); CDLL would release and retake it on every call, handing it to any other
+        # thread that waits for it: in the planner node, hundreds of hand-offs per plan between
+        # the plan and the executor's threads (docs/benchmarks.md, "the node's GIL").
+        lib = ctypes.PyDLL(_kernels.__file__)
     except (ImportError, OSError) as err:
         return None, f'off: the compiled kernels are not built ({err}); the numpy code runs'
     for name, args in SIGNATURES.items():
