@@ -4,8 +4,9 @@ No executor, threads or ROS I/O here: :func:`build_config` turns parameter value
 immutable :class:`PlannerConfig` (or a :class:`ConfigError` naming the parameter);
 :mod:`.service_requests` turns a service request into the library's
 :class:`~geodesic_planner.core.request.PlanRequest`; :func:`compute_plan` turns that into
-the JointTrajectory, tool Path and markers through the library (``PlanRequest.plan``,
-``path.timed``, ``trajectory.sample``); :func:`error_code` names the PlanErrorCode of any error.
+the JointTrajectory and the tool Path (and the tool poses the node's markers are built from)
+through the library (``PlanRequest.plan``, ``path.timed``, ``trajectory.sample``);
+:func:`error_code` names the PlanErrorCode of any error.
 
 Timing: ``path.timed`` under :func:`~geodesic_planner.timing.law.scaled_limits` of the
 configuration (``velocity_scaling``) and the request's factors (0 or GetPlan: the
@@ -25,7 +26,6 @@ from builtin_interfaces.msg import Time
 from geodesic_planner_interfaces.msg import PlanErrorCode
 from nav_msgs.msg import Path
 from trajectory_msgs.msg import JointTrajectory
-from visualization_msgs.msg import MarkerArray
 
 from .. import GeodesicPlanner, load_robot
 from ..core.blend import BlendedPath
@@ -147,14 +147,15 @@ class PlanResult:
 
     trajectory: JointTrajectory
     path: Path
-    markers: MarkerArray
+    #: the tool poses of ``path``, (N, 4, 4), base frame, m (the node's path markers)
+    tool_poses: np.ndarray
     points: int
     duration: float
     solver_iterations: int
     solver_ms: float
     #: ms per stage: 'plan' (library), 'timing' (timed + sample), 'collision' (the checks,
     #: other branches' plans included), 'trajectory' (message and
-    #: its validation), 'publish' (on_trajectory), 'tool path' (fk, Path and markers)
+    #: its validation), 'publish' (on_trajectory), 'tool path' (fk, Path, line deviation)
     stage_ms: dict[str, float]
     #: SolverReport.method ('pullback', 'redundant' or 'collocation') and mesh size
     solver_method: str = ''
@@ -424,7 +425,6 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
     poses = np.concatenate([_fk(config.robot, q[i:i + cv.CHECK_EVERY])
                             for i in range(0, len(q), cv.CHECK_EVERY)])
     path_msg = cv.poses_to_path(poses, config.frame_id, stamp)
-    markers = cv.path_markers(poses, config.frame_id)
     path_error = path.line_deviation()
     deviation = blend_deviation(request, path)
     t6 = time.perf_counter()
@@ -433,7 +433,7 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
               'collision': collision_ms,
               'trajectory': (t3 - t2) * 1e3, 'publish': (t4 - t3) * 1e3,
               'clearance': (t5 - t4) * 1e3, 'tool path': (t6 - t5) * 1e3}
-    return PlanResult(msg, path_msg, markers, len(t), float(trajectory.duration),
+    return PlanResult(msg, path_msg, poses, len(t), float(trajectory.duration),
                       int(solver.iterations), float(solver.time_ms), stages,
                       solver.method, int(solver.mesh_size), path_error, clearance, branch, deviation,
                       tuple(getattr(path, 'notes', ())))
