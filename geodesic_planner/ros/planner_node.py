@@ -94,6 +94,7 @@ from .diagnostics import NodeStatus
 from .matching import MatchBeforePublish, matched_logger
 from .params import PLANNER_PARAMETERS
 from .path_markers import LatestPathMarkers
+from .plan_log import PlanLog
 from .joint_states import JointStateListener, RateLimitedWarnings
 from .scene_services import SceneServices
 from .sequence_service import SequenceService
@@ -139,6 +140,8 @@ class GeodesicPlannerNode(Node):
                 on_count=lambda n: self.status.set(trajectory_subscriptions_matched=n)))
         self._await_subscriptions = MatchBeforePublish(self, self.trajectory_pub)
         self.path_markers = LatestPathMarkers(self)    # built only for a matched reader
+        self.plan_log = PlanLog(self.get_logger())
+        self._plan_log_timer = self.create_timer(1.0, self.plan_log.flush_due)
         # /joint_states: a hidden node spun in a thread of its own (ros/joint_states.py)
         self.joint_states = JointStateListener(
             self, self.resolve_topic_name('/joint_states'),
@@ -362,19 +365,13 @@ class GeodesicPlannerNode(Node):
         total_ms = (time.perf_counter() - t0) * 1e3
         result = outcome.result
         if result is None:
+            self.plan_log.flush()
             self.get_logger().error(f'plan failed ({CODE_NAMES.get(outcome.code, outcome.code)}, '
                                     f'{total_ms:.1f} ms): {outcome.message}')
             return outcome
         self.path_markers.offer(result.tool_poses, result.path.header.frame_id)
-        blends = (f', blend deviation up to {max(result.blend_deviation):.2g} m'
-                  if result.blend_deviation else '')
-        self.get_logger().info(
-            f'plan: {result.points} points, {result.duration:.2f} s, '
-            f'{"published" if outcome.published else "not published (execute: false)"}, solver '
-            f'{result.solver_method} ({result.solver_iterations} it, {result.mesh_size} nodes), '
-            f'{result.solver_ms:.1f} ms, path error {result.path_error:.2g} m{blends}, clearance '
-            f'{result.min_clearance:.3g} m (request '
-            f'{total_ms:.1f} ms: ' + ', '.join(f'{k} {v:.1f}' for k, v in result.stage_ms.items()) + ')')
+        # its own line, or counted in a summary while other requests wait (ros/plan_log.py)
+        self.plan_log.success(result, outcome.published, total_ms, busy=self.queue.inside > 0)
         return outcome
 
     def _refuse(self) -> Outcome:

@@ -553,9 +553,15 @@ def _hammer(planar: PlannerUnderTest, helper: Any, rosout: Collector, per_client
         for msg in msgs[n0:]:
             check_controller_contract(msg, ROBOT_3R.joint_names)
         # the sentinel's "plan: " line is the last one (one /rosout publisher, in order): with
-        # it, every error line is in (other INFO lines, e.g. "waited ... ms", are not counted)
-        wait_until(lambda: sum(m.msg.startswith('plan: ') for m in rosout_since(rosout, k0, planar.logger, INFO))
-                   >= successes + 1, DEADLINE, what='a log line per plan')
+        # it, every error line is in (other INFO lines, e.g. "waited ... ms", are not counted).
+        # Every plan is in a line: its own "plan: ", or a "plans: N ..." summary of plans done
+        # while others waited (written before the next "plan: " line, so before the sentinel's)
+        def plans_logged() -> int:
+            lines = [m.msg for m in rosout_since(rosout, k0, planar.logger, INFO)]
+            return (sum(line.startswith('plan: ') for line in lines)
+                    + sum(int(line.split()[1]) for line in lines if line.startswith('plans: ')))
+        wait_until(lambda: plans_logged() >= successes + 1, DEADLINE, what='every plan in a log line')
+        assert plans_logged() == successes + 1
         assert len(rosout_since(rosout, k0, planar.logger, ERROR)) == 4 * per_client - successes
         return successes
     finally:
