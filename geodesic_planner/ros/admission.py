@@ -43,7 +43,8 @@ class PlanQueue:
         if depth < 1:
             raise ValueError(f'queue depth must be >= 1, got {depth}')
         self.depth = depth
-        self._cond = threading.Condition()
+        self._lock = threading.Lock()
+        self._turns: dict[int, threading.Event] = {}   # waiting ticket -> set when its turn comes
         self._next = 0          # next ticket to hand out
         self._serving = 0       # ticket whose turn it is
         self._given_up: set[int] = set()
@@ -55,12 +56,12 @@ class PlanQueue:
     @property
     def inside(self) -> int:
         """Requests holding a ticket now (waiting or planning)."""
-        with self._cond:
+        with self._lock:
             return self._inside
 
     def enter(self) -> int | None:
         """A ticket, or None when ``depth`` requests are already inside (counted in ``refused``)."""
-        with self._cond:
+        with self._lock:
             if self._inside >= self.depth:
                 self.refused += 1
                 return None
@@ -71,9 +72,20 @@ class PlanQueue:
             return ticket
 
     def wait_turn(self, ticket: int, timeout: float) -> bool:
-        """Wait until it is ``ticket``'s turn (True), or give the turn up after ``timeout`` s (False)."""
-        with self._cond:
-            if self._cond.wait_for(lambda: self._serving == ticket, timeout):
+        """Wait until it is ``ticket``'s turn (True), or give the turn up after ``timeout`` s (False).
+
+        Each waiter waits on an event of its own, set by :meth:`leave` when its turn comes: a
+        finished plan wakes the next request only, not every waiting one.
+        """
+        with self._lock:
+            if self._serving == ticket:
+                return True
+            turn = self._turns[ticket] = threading.Event()
+        if turn.wait(timeout):
+            return True
+        with self._lock:
+            self._turns.pop(ticket, None)
+            if self._serving == ticket:        # the turn came as the wait ended: take it
                 return True
             self._given_up.add(ticket)
             self._inside -= 1
@@ -82,7 +94,7 @@ class PlanQueue:
 
     def leave(self, ticket: int) -> None:
         """``ticket`` is done: the next request still waiting gets its turn."""
-        with self._cond:
+        with self._lock:
             if ticket != self._serving:
                 raise RuntimeError(f'ticket {ticket} left out of turn (serving {self._serving})')
             self._inside -= 1
@@ -90,7 +102,9 @@ class PlanQueue:
             while self._serving in self._given_up:
                 self._given_up.discard(self._serving)
                 self._serving += 1
-            self._cond.notify_all()
+            turn = self._turns.pop(self._serving, None)
+        if turn is not None:
+            turn.set()
 
 
 class WorkerBusyError(RuntimeError):

@@ -1,5 +1,6 @@
 """PlanWorker (ros.admission, issue 26 #1): an abandoned plan is cancelled, never commits, and
-the next run waits only for it to stop. Plain threads: no ROS needed."""
+the next run waits only for it to stop; PlanQueue: admission, order, give-up. Plain threads: no
+ROS needed."""
 from __future__ import annotations
 
 import threading
@@ -9,7 +10,7 @@ from collections.abc import Callable
 import pytest
 
 from geodesic_planner.core.cancel import checkpoint
-from geodesic_planner.ros.admission import PlanWorker, WorkerBusyError
+from geodesic_planner.ros.admission import PlanQueue, PlanWorker, WorkerBusyError
 
 
 def spinning(commit_after: float | None = None, cooperative: bool = True,
@@ -99,3 +100,47 @@ def test_runs_share_one_thread_even_after_a_failed_callback(capfd: pytest.Captur
     after = worker.run(thread, 5.0)
     assert after.error is None and after.result is first
     assert 'RuntimeError: on_stopped failed' in capfd.readouterr().err
+
+
+# --------------------------------------------------------------------------- PlanQueue
+
+def test_queue_refuses_beyond_its_depth_and_serves_in_ticket_order() -> None:
+    queue = PlanQueue(3)
+    tickets = [queue.enter() for _ in range(4)]
+    assert tickets == [0, 1, 2, None] and queue.refused == 1 and queue.inside == 3 and queue.peak == 3
+    order: list[int] = []
+
+    def wait(ticket: int) -> None:
+        assert queue.wait_turn(ticket, 10.0)
+        order.append(ticket)
+        queue.leave(ticket)
+    threads = [threading.Thread(target=wait, args=(t,)) for t in (2, 1)]   # started out of order
+    for thread in threads:
+        thread.start()
+    time.sleep(0.05)
+    assert order == []                          # ticket 0 holds the turn
+    assert queue.wait_turn(0, 1.0)              # its turn at once
+    queue.leave(0)
+    for thread in threads:
+        thread.join(10.0)
+    assert order == [1, 2] and queue.inside == 0
+    with pytest.raises(RuntimeError, match='out of turn'):
+        queue.leave(5)
+
+
+def test_a_waiter_that_gives_up_is_skipped_and_only_the_next_one_is_woken() -> None:
+    queue = PlanQueue(4)
+    first, late, third = queue.enter(), queue.enter(), queue.enter()
+    assert (first, late, third) == (0, 1, 2)
+    assert not queue.wait_turn(late, 0.05)      # gives up behind ticket 0
+    assert queue.timed_out == 1 and queue.inside == 2
+    woken = threading.Event()
+    waiter = threading.Thread(target=lambda: queue.wait_turn(third, 10.0) and woken.set())
+    waiter.start()
+    time.sleep(0.05)
+    assert not woken.is_set()
+    queue.leave(first)                          # ticket 1 gave up: ticket 2's turn, and its event
+    assert woken.wait(5.0)
+    waiter.join(5.0)
+    queue.leave(third)
+    assert queue.inside == 0 and queue.enter() == 3 and queue.wait_turn(3, 0.0)
