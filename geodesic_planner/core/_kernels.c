@@ -9,6 +9,7 @@
  *   gp_jacobian_rate       core.redundant.RedundantEquations.rate (dJ[u], the redundant solver)
  *   gp_geodesic_acceleration  core.geodesic.GeodesicEquations.acceleration (the geodesic equations)
  *   gp_geodesic_jerk       core.geodesic.GeodesicEquations.jerk (q'' and q''' along a geodesic)
+ *   gp_capsule_distances   core.capsules.capsule_distances (sphere and capsule bodies' distances)
  *   gp_build_piecewise     smoothing.build_piecewise_law (the smoothed law's tables)
  *   gp_piecewise_evaluate  smoothing.PiecewiseLaw.evaluate (the smoothed law s(t) and derivatives)
  *   gp_piecewise_check     smooth_check.check_law: the smoothed law's check grid, the law there
@@ -312,6 +313,48 @@ int64_t gp_geodesic_jerk(idx_t N, idx_t dof, const double *X, const double *T, c
         cholesky_solve(G, dof, r, jerk + n * dof);
     }
     return 0;
+}
+
+static inline double dot3(const double *x, const double *y) { return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]; }
+
+static inline double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
+
+/* Signed distances of capsule (or sphere: half length 0) bodies ia[k], ib[k] at configuration n[k]:
+ * their segments' distance (Ericson 5.1.9, as capsules.segment_distances) less both radii.
+ * P: (N, bodies, 4, 4) body frames, the capsule's axis along z. */
+void gp_capsule_distances(idx_t K, idx_t bodies, const double *P, const double *half, const double *radius,
+                          const int64_t *n, const int64_t *ia, const int64_t *ib, double *out)
+{
+    const double eps = 1e-24;
+    for (idx_t k = 0; k < K; ++k) {
+        const double *Fa = P + 16 * (n[k] * bodies + ia[k]), *Fb = P + 16 * (n[k] * bodies + ib[k]);
+        const double ha = half[ia[k]], hb = half[ib[k]];
+        double a0[3], b0[3], d1[3], d2[3], r[3];
+        for (int i = 0; i < 3; ++i) {
+            const double ua = ha * Fa[4 * i + 2], ub = hb * Fb[4 * i + 2];
+            a0[i] = Fa[4 * i + 3] - ua;
+            b0[i] = Fb[4 * i + 3] - ub;
+            d1[i] = (Fa[4 * i + 3] + ua) - a0[i];
+            d2[i] = (Fb[4 * i + 3] + ub) - b0[i];
+            r[i] = a0[i] - b0[i];
+        }
+        const double a = dot3(d1, d1), e = dot3(d2, d2), f = dot3(d2, r), c = dot3(d1, r), b = dot3(d1, d2);
+        const int point_a = a <= eps, point_b = e <= eps;
+        const double safe_a = point_a ? 1.0 : a, safe_e = point_b ? 1.0 : e;
+        const double denom = a * e - b * b;
+        double s = denom > 0.0 ? clamp01((b * f - c * e) / denom) : 0.0;
+        if (point_b) s = clamp01(-c / safe_a);
+        if (point_a) s = 0.0;
+        const double t = point_b ? 0.0 : (b * s + f) / safe_e;
+        const double tc = clamp01(t);
+        if (tc != t && !point_a) s = clamp01((b * tc - c) / safe_a);
+        double d2sum = 0.0;
+        for (int i = 0; i < 3; ++i) {
+            const double diff = (a0[i] + s * d1[i]) - (b0[i] + tc * d2[i]);
+            d2sum += diff * diff;
+        }
+        out[k] = sqrt(d2sum) - radius[ia[k]] - radius[ib[k]];
+    }
 }
 
 static struct PyModuleDef kernels_module = {

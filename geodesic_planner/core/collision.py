@@ -22,6 +22,10 @@ distance of the body from joint j's axis by the segment lengths (triangle inequa
 of the configuration). A pair's distance therefore changes at most at the sum of its two bodies'
 speeds ``R``; an interval [a, b] is clear when ``d(a) + d(b) - R (b - a) > 2 padding``, else it
 is bisected: a thin plate between two checks is caught; refused within :data:`RESOLUTION` of it.
+:func:`~.clearance.refine_min_clearance` then bounds the smallest distance over the whole motion.
+
+Exact distances are coal's, except between spheres and capsules (the presets' links): those come
+in batches from :mod:`.capsules`, equal to coal's within about 1e-16 m.
 """
 from __future__ import annotations
 
@@ -34,6 +38,8 @@ import coal
 import numpy as np
 
 from .cancel import checkpoint
+from .capsules import capsule_distances
+from .clearance import refine_min_clearance
 from .collision_bodies import (
     Body,
     SceneObject,
@@ -152,6 +158,12 @@ class CollisionModel:
         self._distance_fns: dict[int, Any] = {}
         self._request = coal.DistanceRequest()
         self._result = coal.DistanceResult()
+        # spheres and capsules (the presets' links): their pairs' distances in batches (core.capsules)
+        prims = [(g.halfLength, g.radius) if isinstance(g, coal.Capsule) else (0.0, g.radius)
+                 if isinstance(g, coal.Sphere) else (np.nan, np.nan) for g in (b.geometry for b in self._bodies)]
+        self._half = np.array([h for h, _ in prims], dtype=float)
+        self._prim_radius = np.array([r for _, r in prims], dtype=float)
+        self._analytic = np.isfinite(self._half[self._ia]) & np.isfinite(self._half[self._ib])
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -258,9 +270,25 @@ class CollisionModel:
         centers = np.einsum('nbij,bj->nbi', S[..., :3, :3], self._center) + S[..., :3, 3]
         return S @ self._offset, centers
 
+    def _exact_many(self, P: np.ndarray, ns: np.ndarray, ps: np.ndarray, cache: dict[tuple[int, int], Any]
+                    ) -> np.ndarray:
+        """Distances of pairs ``ps[k]`` at configurations ``ns[k]``, (K,), m: spheres and capsules
+        in one batch (:func:`~.capsules.capsule_distances`), other shapes by coal (:meth:`_exact`)."""
+        ns, ps = np.asarray(ns, dtype=np.int64).reshape(-1), np.asarray(ps, dtype=np.int64).reshape(-1)
+        out = np.empty(ns.size)
+        fast = self._analytic[ps]
+        if fast.any():
+            out[fast] = capsule_distances(P, self._half, self._prim_radius, ns[fast], self._ia[ps[fast]],
+                                          self._ib[ps[fast]])
+        for k in np.flatnonzero(~fast):
+            out[k] = self._exact(P, int(ns[k]), int(ps[k]), cache)
+        return out
+
     def _exact(self, P: np.ndarray, n: int, p: int, cache: dict[tuple[int, int], Any]) -> float:
-        """Distance of pair p at configuration n (coal), m; ``cache`` keeps each body's coal
-        transform per configuration (a body is in several pairs)."""
+        """Distance of pair p at configuration n (coal; spheres and capsules as in :meth:`_exact_many`),
+        m; ``cache`` keeps each body's coal transform per configuration (a body is in several pairs)."""
+        if self._analytic[p]:
+            return float(self._exact_many(P, np.array([n]), np.array([p]), cache)[0])
         i, j = int(self._ia[p]), int(self._ib[p])
         fn = self._distance_fns.get(p)
         if fn is None:
@@ -283,9 +311,8 @@ class CollisionModel:
         lower = (np.linalg.norm(centers[:, self._ia] - centers[:, self._ib], axis=-1)
                  - self._radius[self._ia] - self._radius[self._ib])
         exact = lower < exact_below
-        cache: dict[tuple[int, int], Any] = {}
-        for n, p in zip(*np.nonzero(exact)):
-            lower[n, p] = self._exact(P, int(n), int(p), cache)
+        ns, ps = np.nonzero(exact)
+        lower[ns, ps] = self._exact_many(P, ns, ps, {})
         return lower, exact, P
 
     def distances(self, qs: np.ndarray) -> tuple[np.ndarray, list[tuple[str, str]]]:
@@ -415,68 +442,12 @@ class CollisionModel:
                        t: np.ndarray, s: np.ndarray, D: np.ndarray, E: np.ndarray, P: np.ndarray,
                        checks: int) -> MotionClearance:
         """The smallest distance over a clear motion, to within max(:data:`RESOLUTION`,
-        :data:`CLEARANCE_TOLERANCE` of it) below.
-
-        Between two checked times a and b, pair p's distance is at least
-        ``(d(a) + d(b) - R_p (b - a)) / 2``. Intervals whose bound is below the smallest exact
-        distance found (U) less that tolerance are bisected, their ends made exact for that pair,
-        until none is; the result is the smallest bound left, never above the true minimum.
-        """
-        caches: dict[int, dict[tuple[int, int], Any]] = {}
-
-        def below(u: float) -> float:        # bounds under this are refined
-            return u - max(RESOLUTION, CLEARANCE_TOLERANCE * u)
-
-        def exact(n: int, p: int) -> float:
-            if not E[n, p]:
-                D[n, p] = self._exact(P[n][None], 0, p, caches.setdefault(n, {}))
-                E[n, p] = True
-            return float(D[n, p])
-
-        while True:                 # best first: the smallest distance at the checked times, exact
-            n, p = (int(i) for i in np.unravel_index(int(np.argmin(D)), D.shape))
-            if E[n, p]:
-                break
-            exact(n, p)
-        U, where = float(D[n, p]), (p, float(t[n]), float(s[n]))
-        dt = np.diff(t)
-        lb = 0.5 * (D[:-1] + D[1:] - R[None, :] * dt[:, None])       # (intervals, pairs)
-        ia, pa = np.nonzero(lb < below(U))
-        # the smallest bound set aside (a lower bound of the distance there)
-        lowest = float(np.where(lb < below(U), np.inf, lb).min()) if lb.size else math.inf
-        for n, p in zip(np.concatenate([ia, ia + 1]), np.concatenate([pa, pa])):
-            d = exact(int(n), int(p))
-            if d < U:
-                U, where = d, (int(p), float(t[n]), float(s[n]))
-        ta, tb, Da, Db = t[ia], t[ia + 1], D[ia, pa], D[ia + 1, pa]
-        while pa.size:
-            checkpoint()
-            bound = 0.5 * (Da + Db - R[pa] * (tb - ta))
-            keep = bound < below(U)
-            if (~keep).any():
-                lowest = min(lowest, float(bound[~keep].min()))
-            ta, tb, Da, Db, pa, bound = ta[keep], tb[keep], Da[keep], Db[keep], pa[keep], bound[keep]
-            if not pa.size:
-                break
-            if checks + pa.size > MAX_CHECKS:
-                lowest = min(lowest, float(bound.min()))
-                break
-            tm = 0.5 * (ta + tb)
-            tu, at = np.unique(tm, return_inverse=True)    # one configuration per time
-            qm, sm = positions(tu)
-            Pm, _ = self._poses(self.robot.check_joints(np.asarray(qm, dtype=float), 'q'))
-            cache: dict[tuple[int, int], Any] = {}
-            dm = np.array([self._exact(Pm, int(k), int(p), cache) for k, p in zip(at, pa)])
-            sm = np.asarray(sm)[at]
-            checks += tu.size
-            k = int(np.argmin(dm))
-            if dm[k] < U:
-                U, where = float(dm[k]), (int(pa[k]), float(tm[k]), float(sm[k]))
-            ta, tb = np.concatenate([ta, tm]), np.concatenate([tm, tb])
-            Da, Db = np.concatenate([Da, dm]), np.concatenate([dm, Db])
-            pa = np.concatenate([pa, pa])
-        p_min, t_min, s_min = where
-        return MotionClearance(min(U, lowest), self._pair_names[p_min], t_min, s_min, checks)
+        :data:`CLEARANCE_TOLERANCE` of it) below (:func:`~.clearance.refine_min_clearance`)."""
+        value, p, t_min, s_min, checks = refine_min_clearance(
+            lambda frames, ns, ps: self._exact_many(frames, ns, ps, {}),
+            lambda qs: self._poses(self.robot.check_joints(np.asarray(qs, dtype=float), 'q'))[0],
+            positions, R, t, s, D, E, P, checks, RESOLUTION, CLEARANCE_TOLERANCE, MAX_CHECKS)
+        return MotionClearance(value, self._pair_names[p], t_min, s_min, checks)
 
     def _stop_at_ends(self, D: np.ndarray, times: np.ndarray, s: np.ndarray) -> None:
         """Raise for a start or goal within the padding (exact there: the bound is small)."""

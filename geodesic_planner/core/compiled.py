@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['LIB', 'REASON', 'Pinned', 'active', 'f64', 'frames', 'generators', 'geodesic_acceleration', 'geodesic_jerk',
-           'jacobian_rate', 'numpy_only', 'polynomials', 'scratch']
+__all__ = ['LIB', 'REASON', 'Pinned', 'active', 'capsule_distances', 'f64', 'frames', 'generators',
+           'geodesic_acceleration', 'geodesic_jerk', 'jacobian_rate', 'numpy_only', 'polynomials', 'scratch']
 
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
@@ -36,6 +36,7 @@ SIGNATURES: dict[str, list[Any]] = {
     'gp_jacobian_rate': [_I, _I, _P, _P, _P, _P],
     'gp_geodesic_acceleration': [_I, _I, _P, _P, _P, _P, _D, _P, _P],
     'gp_geodesic_jerk': [_I, _I, _P, _P, _P, _P, _D, _P, _P, _P],
+    'gp_capsule_distances': [_I, _I] + [_P] * 7,
     'gp_build_piecewise': [_P, _P, _I, _P, _D, _D, _P, _P, _P, _P, _P, _P, _P],
     'gp_refine': [_I, _I, _I] + [_P] * 11,
     'gp_hermite_coef': [_I, _I] + [_P] * 8,
@@ -221,3 +222,15 @@ def polynomials(tables: Pinned, times: np.ndarray, order: int) -> tuple[np.ndarr
     out = np.empty((order + 1, m, dof))
     LIB.gp_polynomials(m, times.ctypes.data, t.size, tables.ptrs[0], tables.ptrs[1], dof, order, out.ctypes.data)
     return tuple(out)
+
+
+def capsule_distances(P: np.ndarray, half: np.ndarray, radius: np.ndarray, n: np.ndarray, ia: np.ndarray,
+                      ib: np.ndarray) -> np.ndarray:
+    """:func:`geodesic_planner.core.capsules.capsule_distances` in C (indices int64, (K,))."""
+    assert LIB is not None
+    P, half, radius = f64(P), f64(half), f64(radius)
+    n, ia, ib = (np.ascontiguousarray(x, dtype=np.int64) for x in (n, ia, ib))
+    out = np.empty(n.size)
+    LIB.gp_capsule_distances(n.size, P.shape[1], P.ctypes.data, half.ctypes.data, radius.ctypes.data,
+                             n.ctypes.data, ia.ctypes.data, ib.ctypes.data, out.ctypes.data)
+    return out
