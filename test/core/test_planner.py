@@ -668,3 +668,32 @@ def test_invalid_method_is_a_request_error(planar: GeodesicPlanner, method: Any)
         planar.plan_joints(Q3_A, Q3_B, method=method)
     with pytest.raises(RequestError, match='method must be one of'):
         planar.plan_through([None, planar.robot.fk(np.array(Q3_B))], Q3_A, method=method)
+
+
+def test_a_geodesic_that_overshoots_a_limit_between_nodes_is_refused():
+    """Found by the fuzz tests (test_fuzz_plan_joints, in CI): a goal with two joints exactly on
+    their lower limits; the collocation geodesic passes the prismatic joint's limit by 3.2e-6 m
+    between its last two nodes and turns back. Checked at the nodes and a few points between,
+    the path was returned; the check now finds the turning point."""
+    from geodesic_planner import chain_from_dh
+    from geodesic_planner.core.errors import LimitError
+
+    tool = np.eye(4)
+    tool[2, 3] = 0.258744940713201
+    robot = chain_from_dh('dh4s', [(0.0, 0.0, 0.5408209156193913, 1.5421067995858024),
+                                   (0.0, 0.0, 0.0, PI / 2),
+                                   (0.0, 0.0, 1.2889962859066229, 1.094042428748227),
+                                   (-2.8365184687945253, 0.0, 0.5376042457933637, 1.094042428748227)],
+                          ['prismatic', 'revolute', 'revolute', 'revolute'], tool=tool,
+                          lower=[-0.2, -2.0, -PI, -PI], upper=[0.3, 1.0, PI, PI],
+                          max_velocity=0.862041499259387, max_acceleration=6.744793482341451)
+    planner = GeodesicPlanner(robot, metric='paper', position_weight=0.3, orientation_weight=1.0, epsilon=1e-3)
+    q_a = [-0.14194411358248968, -1.7807, -1.341302983450162, 0.7341915033626707]
+    q_b = [-0.2, -2.0, -1.341302983450162, 1.0354039378056323]
+    with pytest.raises(LimitError, match=r"joint 'joint1' reaches -0\.2000[0-9]+ at s = 0\.9[0-9]+"):
+        planner.plan_joints(q_a, q_b)
+    # the same geodesic without the limit check: out by 3.2e-6 m between the last two nodes
+    path = GeodesicPlanner(robot, metric='paper', position_weight=0.3, orientation_weight=1.0, epsilon=1e-3,
+                           check_limits=False).plan_joints(q_a, q_b)
+    q = path.evaluate(np.linspace(0.0, 1.0, 20001), order=0)[0]
+    assert 3e-6 < robot.lower[0] - q[:, 0].min() < 3.5e-6
