@@ -26,7 +26,7 @@ Rows:
    joint: at most 20 ms absolute; the ratio to the ``plan_through`` time is printed beside it;
 4. 7 joints: the panda's plan time at most 2x the ur5e's (the two plan medians of rows 1);
 5. with ``--node`` (starts ROS nodes, in the loopback network namespace via scripts/netns.sh):
-   ``benchmarks/node_latency.py --robots ur5e --requests 40`` run twice, without and with
+   ``benchmarks/node_latency.py --robots ur5e --requests 40 --per-client 100`` run twice, without and with
    ``--joint-states-hz 250``: ur5e request->trajectory p50 <= 8 ms and plans/s with 4 clients
    >= 100 (both from the first run), and the extra p50 with /joint_states at 250 Hz < 10 %.
    Without ``--node`` these rows say "not run (--node)"; when node_latency.py fails, or its table
@@ -62,8 +62,10 @@ JERK_SAMPLES = 20001
 #: Blended sequence of row 3: blend radius (m) and jerk limit (rad/s³, every joint; blends.py --jerk).
 BLEND_RADIUS = 0.02
 BLEND_JERK = 50.0
-#: node_latency.py runs of rows 5.
+#: node_latency.py runs of rows 5: sequential requests, and requests per client under load (400
+#: in all: about 4 s of load, so that the rate is not one second's sample of a drifting host).
 NODE_REQUESTS = 40
+NODE_PER_CLIENT = 100
 JOINT_STATES_HZ = 250.0
 
 HEADER = ('#', 'target', 'case', 'reference (ms, median / p90)', 'measured (median / p90)', 'ratio',
@@ -306,7 +308,7 @@ def planner_rows(repeats: int) -> list[Row]:
 def run_node_latency(extra: list[str]) -> str:
     """stdout of node_latency.py for ur5e inside the network namespace; RuntimeError on failure."""
     cmd = ['bash', 'scripts/netns.sh', sys.executable, 'benchmarks/node_latency.py', '--robots', 'ur5e',
-           '--requests', str(NODE_REQUESTS), *extra]
+           '--requests', str(NODE_REQUESTS), '--per-client', str(NODE_PER_CLIENT), *extra]
     print(f'running: {" ".join(cmd)}', flush=True)
     res = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=900, check=False)
     if res.returncode != 0:
