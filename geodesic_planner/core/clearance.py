@@ -50,7 +50,7 @@ def refine_min_clearance(exact: Exact, frames: Callable[[np.ndarray], np.ndarray
         n, p = (int(i) for i in np.unravel_index(int(np.argmin(D)), D.shape))
         if E[n, p]:
             break
-        D[n, p] = exact(P[n][None], np.zeros(1, dtype=np.int64), np.array([p]))[0]
+        D[n, p] = exact(P, np.array([n]), np.array([p]))[0]
         E[n, p] = True
     U, where = float(D[n, p]), (p, float(t[n]), float(s[n]))
     dt = np.diff(t)
@@ -59,8 +59,9 @@ def refine_min_clearance(exact: Exact, frames: Callable[[np.ndarray], np.ndarray
     # the smallest bound set aside (a lower bound of the distance there)
     lowest = float(np.where(lb < below(U), np.inf, lb).min()) if lb.size else math.inf
     ends, pe = np.concatenate([ia, ia + 1]), np.concatenate([pa, pa])
-    todo = ~E[ends, pe]
-    D[ends[todo], pe[todo]] = exact(P, ends[todo], pe[todo])
+    todo = np.unique((ends * D.shape[1] + pe)[~E[ends, pe]])    # each (time, pair) once
+    tn, tp = np.divmod(todo, D.shape[1])
+    D[tn, tp] = exact(P, tn, tp)
     E[ends, pe] = True
     if ends.size and D[ends, pe].min() < U:
         k = int(np.argmin(D[ends, pe]))

@@ -273,7 +273,7 @@ class CollisionModel:
     def _exact_many(self, P: np.ndarray, ns: np.ndarray, ps: np.ndarray, cache: dict[tuple[int, int], Any]
                     ) -> np.ndarray:
         """Distances of pairs ``ps[k]`` at configurations ``ns[k]``, (K,), m: spheres and capsules
-        in one batch (:func:`~.capsules.capsule_distances`), other shapes by coal (:meth:`_exact`)."""
+        in one batch (:func:`~.capsules.capsule_distances`), other shapes by coal (:meth:`_coal_distance`)."""
         ns, ps = np.asarray(ns, dtype=np.int64).reshape(-1), np.asarray(ps, dtype=np.int64).reshape(-1)
         out = np.empty(ns.size)
         fast = self._analytic[ps]
@@ -281,14 +281,16 @@ class CollisionModel:
             out[fast] = capsule_distances(P, self._half, self._prim_radius, ns[fast], self._ia[ps[fast]],
                                           self._ib[ps[fast]])
         for k in np.flatnonzero(~fast):
-            out[k] = self._exact(P, int(ns[k]), int(ps[k]), cache)
+            out[k] = self._coal_distance(P, int(ns[k]), int(ps[k]), cache)
         return out
 
     def _exact(self, P: np.ndarray, n: int, p: int, cache: dict[tuple[int, int], Any]) -> float:
-        """Distance of pair p at configuration n (coal; spheres and capsules as in :meth:`_exact_many`),
-        m; ``cache`` keeps each body's coal transform per configuration (a body is in several pairs)."""
-        if self._analytic[p]:
-            return float(self._exact_many(P, np.array([n]), np.array([p]), cache)[0])
+        """Distance of pair p at configuration n, m (:meth:`_exact_many` of one)."""
+        return float(self._exact_many(P, np.array([n]), np.array([p]), cache)[0])
+
+    def _coal_distance(self, P: np.ndarray, n: int, p: int, cache: dict[tuple[int, int], Any]) -> float:
+        """coal's distance of pair p at configuration n, m; ``cache`` keeps each body's coal
+        transform per configuration (a body is in several pairs)."""
         i, j = int(self._ia[p]), int(self._ib[p])
         fn = self._distance_fns.get(p)
         if fn is None:
@@ -304,8 +306,8 @@ class CollisionModel:
 
     def _bounds(self, qs: np.ndarray, exact_below: np.ndarray | float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Lower bounds of every pair's distance at each configuration, (N, pairs), m: coal's
-        distance where the bounding spheres' bound is below ``exact_below`` (scalar or (pairs,)),
+        """Lower bounds of every pair's distance at each configuration, (N, pairs), m: the exact
+        distance (:meth:`_exact_many`) where the bounding spheres' bound is below ``exact_below`` (scalar or (pairs,)),
         the spheres' bound elsewhere; with the mask of the exact ones and the body frames."""
         P, centers = self._poses(qs)
         lower = (np.linalg.norm(centers[:, self._ia] - centers[:, self._ib], axis=-1)

@@ -189,9 +189,9 @@ def geodesic_acceleration(X: np.ndarray, T: np.ndarray, v: np.ndarray, mask: np.
     X, T, v, mask = f64(X), f64(T), f64(v), f64(mask)
     N, dof = v.shape
     a = np.empty((N, dof))
-    scratch = np.empty(dof * (17 + dof) + 64)
+    work = np.empty(dof * (17 + dof) + 64)
     bad = LIB.gp_geodesic_acceleration(N, dof, X.ctypes.data, T.ctypes.data, v.ctypes.data, mask.ctypes.data,
-                                       float(epsilon), a.ctypes.data, scratch.ctypes.data)
+                                       float(epsilon), a.ctypes.data, work.ctypes.data)
     return None if bad else a
 
 
@@ -204,9 +204,9 @@ def geodesic_jerk(X: np.ndarray, T: np.ndarray, v: np.ndarray, mask: np.ndarray,
     X, T, v, mask = f64(X), f64(T), f64(v), f64(mask)
     N, dof = v.shape
     out = np.empty((2, N, dof))
-    scratch = np.empty(dof * (50 + dof))
+    work = np.empty(dof * (50 + dof))
     bad = LIB.gp_geodesic_jerk(N, dof, X.ctypes.data, T.ctypes.data, v.ctypes.data, mask.ctypes.data, float(epsilon),
-                               out.ctypes.data, out.ctypes.data + 8 * N * dof, scratch.ctypes.data)
+                               out.ctypes.data, out.ctypes.data + 8 * N * dof, work.ctypes.data)
     return None if bad else (out[0], out[1])
 
 

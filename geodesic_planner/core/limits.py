@@ -74,7 +74,7 @@ def _turning_points(path: GeodesicPath, s: np.ndarray, q: np.ndarray, dq: np.nda
     k, j = np.nonzero(minimum | maximum)
     if not k.size:
         return None
-    a, b = s[k].copy(), s[k + 1].copy()
+    a, b = s[k], s[k + 1]
     rising = dq[k, j] < 0.0           # a minimum: q' goes from - to +
     for _ in range(TURN_BISECTIONS):
         m = 0.5 * (a + b)
