@@ -17,6 +17,7 @@ or stops, and then says why and where:
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,6 +48,10 @@ LIMIT_CHECKS = 8
 #: stop is reported as a singularity.
 SINGULAR_RATIO = 1e-2
 
+#: A tool path other than the line: s (m,) -> poses (m, 4, 4) and tool velocities dp/ds (m, 3),
+#: base frame, m (its orientation the slerp from the start, e.g. CIRC's arc).
+TaskPath = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
 
 @dataclass(frozen=True)
 class LineFollow:
@@ -71,7 +76,8 @@ class LineFollow:
 
 
 def follow_line(robot: Chain, q_a: np.ndarray, T_a: np.ndarray, T_b: np.ndarray, w_body: np.ndarray,
-                *, position_weight: float = 1.0, orientation_weight: float = 1.0) -> LineFollow:
+                *, position_weight: float = 1.0, orientation_weight: float = 1.0,
+                task: TaskPath | None = None, name: str = 'the straight line') -> LineFollow:
     """Follow the line + slerp from ``T_a`` (= FK of ``q_a``) to ``T_b`` by continuation.
 
     Args:
@@ -80,19 +86,21 @@ def follow_line(robot: Chain, q_a: np.ndarray, T_a: np.ndarray, T_b: np.ndarray,
         T_a, T_b: base->tool transforms of the two ends (m).
         w_body: ``so3_log(R_aᵀ R_b)`` (rad, start frame): the slerp's rotation vector.
         position_weight, orientation_weight: the metric's weights (as the IK of the planner).
+        task: another tool path from ``T_a`` (its orientation the slerp of ``w_body``) instead of
+            the line + slerp to ``T_b``; ``name``: the path in the messages.
     Returns:
         The samples reached and, where the line cannot be followed to its end, the reason.
     """
     s_done, q_done = [0.0], [np.array(q_a, dtype=float)]
     s, q = 0.0, q_done[0]
     v: np.ndarray | None = None
-    dp = T_b[:3, 3] - T_a[:3, 3]
-    rate = _rate(robot, q, T_a[:3, :3], dp, w_body)
+    task = task or _line(T_a, T_b, w_body)
+    rate = _rate(robot, q, T_a[:3, :3], task(np.zeros(1))[1][0], w_body)
     ds = INITIAL_STEP
     while s < 1.0:
         checkpoint()
         ds = min(ds, 1.0 - s)
-        target = line_slerp(T_a, T_b, np.array([s + ds]), w_body)
+        target, dp = task(np.array([s + ds]))
         seed = q if v is None else q + v * ds
         q_new, res, _, _ = gauss_newton_batch(
             robot, target, seed[None], position_weight=position_weight,
@@ -102,11 +110,11 @@ def follow_line(robot: Chain, q_a: np.ndarray, T_a: np.ndarray, T_b: np.ndarray,
         step = np.abs(q_new - q)
         if (np.isfinite(res[0]) and res[0] < EXACT_GUESS_RESIDUAL
                 and step.max() <= min(MAX_JOINT_STEP, MAX_JOINT_RATE * ds)):
-            rate_new = _rate(robot, q_new, target[0, :3, :3], dp, w_body)
+            rate_new = _rate(robot, q_new, target[0, :3, :3], dp[0], w_body)
             crossing = _limit_crossing(robot, q, q_new, rate, rate_new, s, ds)
             if crossing is not None:
                 return LineFollow(np.array(s_done), np.array(q_done), crossing[0],
-                                  _limit_error(robot, q, crossing, T_a, T_b, w_body))
+                                  _limit_error(robot, q, crossing, task, name))
             v = (q_new - q) / ds
             s, q, rate = s + ds, q_new, rate_new
             s_done.append(s)
@@ -115,9 +123,15 @@ def follow_line(robot: Chain, q_a: np.ndarray, T_a: np.ndarray, T_b: np.ndarray,
             continue
         ds *= 0.5
         if ds < MIN_STEP:
-            return LineFollow(np.array(s_done), np.array(q_done), s, _stop_error(robot, q, s))
+            return LineFollow(np.array(s_done), np.array(q_done), s, _stop_error(robot, q, s, name))
     s_done[-1] = 1.0
     return LineFollow(np.array(s_done), np.array(q_done), 1.0, None)
+
+
+def _line(T_a: np.ndarray, T_b: np.ndarray, w_body: np.ndarray) -> TaskPath:
+    """The line + slerp from T_a to T_b as a :data:`TaskPath`."""
+    dp = T_b[:3, 3] - T_a[:3, 3]
+    return lambda s: (line_slerp(T_a, T_b, s, w_body), np.broadcast_to(dp, (s.size, 3)))
 
 
 def _rate(robot: Chain, q: np.ndarray, R: np.ndarray, dp: np.ndarray, w_body: np.ndarray) -> np.ndarray:
@@ -160,24 +174,23 @@ def _percent(fraction: float) -> str:
     return f'{100.0 * fraction:.3g} %'
 
 
-def _limit_error(robot: Chain, q: np.ndarray, crossing: tuple[float, int], T_a: np.ndarray,
-                 T_b: np.ndarray, w_body: np.ndarray) -> PathFollowError:
+def _limit_error(robot: Chain, q: np.ndarray, crossing: tuple[float, int], task: TaskPath,
+                 name: str) -> PathFollowError:
     fraction, j = crossing
     bound = robot.upper[j] if q[j] + 1e-12 >= 0.5 * (robot.lower[j] + robot.upper[j]) else robot.lower[j]
-    return line_limit_error(robot, j, float(bound), fraction,
-                            line_slerp(T_a, T_b, np.array([fraction]), w_body)[0, :3, 3])
+    return line_limit_error(robot, j, float(bound), fraction, task(np.array([fraction]))[0][0, :3, 3], name)
 
 
-def _stop_error(robot: Chain, q: np.ndarray, fraction: float) -> PathFollowError:
+def _stop_error(robot: Chain, q: np.ndarray, fraction: float, name: str) -> PathFollowError:
     sv = np.linalg.svd(robot.jacobian(q), compute_uv=False)
     smallest, largest = float(sv[-1]), float(sv[0])
     if smallest < SINGULAR_RATIO * largest:
         return PathFollowError(
-            f'the straight line passes through a singularity of robot {robot.name!r} at '
+            f'{name} passes through a singularity of robot {robot.name!r} at '
             f'{_percent(fraction)} of the way ({_where(robot, q)}; smallest singular value '
             f'{smallest:.2g}): the joints would have to flip; followable fraction {fraction:.4f}',
             fraction=fraction)
     return LineUnreachableError(
-        f'the straight line cannot be followed by robot {robot.name!r} beyond {_percent(fraction)} '
+        f'{name} cannot be followed by robot {robot.name!r} beyond {_percent(fraction)} '
         f'of the way ({_where(robot, q)}): no configuration near the start\'s branch reaches the '
         f'next pose; followable fraction {fraction:.4f}', fraction=fraction)

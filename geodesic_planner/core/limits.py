@@ -85,12 +85,13 @@ def _turning_points(path: GeodesicPath, s: np.ndarray, q: np.ndarray, dq: np.nda
     return m, path.evaluate(m, order=0)[0]
 
 
-def line_limit_error(robot: Chain, joint: int, bound: float, fraction: float, point: np.ndarray) -> LineLimitError:
-    """The refusal of a line whose branch passes joint ``joint``'s limit ``bound`` at ``fraction``
-    of the way, with the tool at ``point`` (base frame, m)."""
+def line_limit_error(robot: Chain, joint: int, bound: float, fraction: float, point: np.ndarray,
+                     name: str = 'the straight line') -> LineLimitError:
+    """The refusal of a line (or of the path ``name``) whose branch passes joint ``joint``'s limit
+    ``bound`` at ``fraction`` of the way, with the tool at ``point`` (base frame, m)."""
     x, y, z = point
     return LineLimitError(
-        f'the straight line cannot be followed by robot {robot.name!r}: joint '
+        f'{name} cannot be followed by robot {robot.name!r}: joint '
         f'{robot.joint_names[joint]!r} would pass its limit {bound:.6g} at {100.0 * fraction:.3g} % of '
         f'the way (tool at {x:.4f}, {y:.4f}, {z:.4f} m); followable fraction {fraction:.4f}',
         fraction=fraction)
