@@ -16,6 +16,8 @@ there). On the chain from base to tip:
 """
 from __future__ import annotations
 
+import difflib
+
 import numpy as np
 
 from .errors import KinematicsError, quoted
@@ -53,11 +55,14 @@ def chain_from_urdf(xml: str, base_link: str | None = None, tip_link: str | None
     model = name or urdf.name
     base_link = urdf.root if base_link is None else base_link
     if base_link not in urdf.children:
-        raise KinematicsError(f'URDF: base_link {quoted(base_link)} is not a link of {quoted(model)}')
+        bases = candidate_links(urdf, urdf.root, base_link, tips=False)
+        raise KinematicsError(f'URDF: base_link {quoted(base_link)} is not a link of {quoted(model)}; '
+                              f'candidate base links: {names_list(bases)}')
     if tip_link is None:
         tip_link = _single_leaf(urdf, base_link)
     if tip_link not in urdf.children:
-        raise KinematicsError(f'URDF: tip_link {quoted(tip_link)} is not a link of {quoted(model)}')
+        raise KinematicsError(f'URDF: tip_link {quoted(tip_link)} is not a link of {quoted(model)}; '
+                              f'{_tips_below(urdf, base_link, tip_link)}')
     path = _path(urdf, base_link, tip_link)
     on_chain = {j.name for j in path}
     fixed = [np.eye(4)]
@@ -92,6 +97,28 @@ def _single_leaf(urdf: UrdfModel, base_link: str) -> str:
     return link
 
 
+def candidate_links(urdf: UrdfModel, top: str, wanted: str, *, tips: bool = True) -> list[str]:
+    """The links at and below ``top`` that a wrong link name ``wanted`` may have meant: the closest
+    names first (:func:`difflib.get_close_matches`), then (``tips``) the leaf links, the usual
+    tips, then the rest in tree order (breadth first, ``top`` first)."""
+    below = [top]
+    for link in below:                  # grows while it is read: breadth first
+        below.extend(urdf.children[link])
+    close = difflib.get_close_matches(wanted, below, n=len(below), cutoff=0.6)
+    taken = set(close)
+    leaves = [link for link in below if tips and not urdf.children[link] and link not in taken]
+    taken.update(leaves)
+    return close + leaves + [link for link in below if link not in taken]
+
+
+def _tips_below(urdf: UrdfModel, base_link: str, tip_link: str) -> str:
+    """The candidate tip links below ``base_link``, for a message."""
+    found = [link for link in candidate_links(urdf, base_link, tip_link) if link != base_link]
+    if not found:
+        return f'base_link {quoted(base_link)} has no link below it'
+    return f'candidate tip links below base_link {quoted(base_link)}: {names_list(found)}'
+
+
 def _path(urdf: UrdfModel, base_link: str, tip_link: str) -> list[UrdfJoint]:
     """The joints from ``base_link`` down to ``tip_link``."""
     path = []
@@ -99,7 +126,8 @@ def _path(urdf: UrdfModel, base_link: str, tip_link: str) -> list[UrdfJoint]:
     while link != base_link:
         found = urdf.parent_joint.get(link)
         if found is None:
-            raise KinematicsError(f'URDF: tip_link {quoted(tip_link)} is not below base_link {quoted(base_link)}')
+            raise KinematicsError(f'URDF: tip_link {quoted(tip_link)} is not below base_link {quoted(base_link)}; '
+                                  f'{_tips_below(urdf, base_link, tip_link)}')
         path.append(found)
         link = found.parent
     path.reverse()

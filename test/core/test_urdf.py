@@ -5,6 +5,7 @@ inside a chain and mimic joints match hand-computed transforms and pinocchio; er
 from __future__ import annotations
 
 import os
+import re
 
 import numpy as np
 import pin_oracle
@@ -471,3 +472,40 @@ def test_regression_model_errors_are_bounded(xml: str, match: str) -> None:
     with pytest.raises(KinematicsError, match=match) as info:
         chain_from_urdf(xml)
     assert len(str(info.value)) < 1000
+
+
+# test/data/branching.urdf by hand: the links below 'link1', and every link with the root first
+BELOW_LINK1 = {'left_link', 'left_tip', 'left_tool', 'right_link', 'right_finger'}
+
+
+def _listed(message: str) -> list[str]:
+    """The quoted names of a message's last [...] list."""
+    return re.findall(r"'([^']*)'", message[message.rindex('['):])
+
+
+def test_wrong_tip_link_lists_the_candidates_below_base_link():
+    with pytest.raises(KinematicsError, match="tip_link 'nope' is not a link of 'two_branch'; candidate tip "
+                                              "links below base_link 'link1': ") as err:
+        chain_from_urdf(read(BRANCHING), base_link='link1', tip_link='nope')
+    listed = _listed(str(err.value))
+    assert set(listed) == BELOW_LINK1 and len(listed) == len(BELOW_LINK1)
+    assert set(listed[:2]) == {'left_tool', 'right_finger'}          # the leaves (tips) first
+
+
+def test_misspelt_links_list_the_closest_name_first():
+    with pytest.raises(KinematicsError, match="tip_link 'left_tol' is not a link") as err:
+        load_robot(BRANCHING, tip_link='left_tol')
+    assert _listed(str(err.value))[0] == 'left_tool'
+    assert str(err.value).endswith('(2 more)]')                     # 7 links below 'base', 5 shown
+    with pytest.raises(KinematicsError, match="base_link 'bse' is not a link of 'two_branch'; candidate base "
+                                              "links: ") as err:
+        load_robot(BRANCHING, base_link='bse', tip_link='left_tool')
+    assert _listed(str(err.value))[0] == 'base'
+
+
+def test_tip_link_above_base_link_lists_what_is_below():
+    with pytest.raises(KinematicsError, match="tip_link 'left_link' is not below base_link 'left_tip'; candidate "
+                                              r"tip links below base_link 'left_tip': \['left_tool'\]"):
+        chain_from_urdf(read(BRANCHING), base_link='left_tip', tip_link='left_link')
+    with pytest.raises(KinematicsError, match="base_link 'left_tool' has no link below it"):
+        chain_from_urdf(read(BRANCHING), base_link='left_tool', tip_link='link1')
