@@ -119,9 +119,10 @@ def check_quaternion(q: npt.ArrayLike, what: str = 'orientation') -> np.ndarray:
         raise RequestError(f'{what}: quaternion contains NaN or inf: {arr.tolist()}')
     norm = float(np.linalg.norm(arr))
     if abs(norm - 1.0) > QUAT_NORM_TOLERANCE:
+        unset = ': all zero, the orientation is unset (w: 1 for no rotation)' if norm == 0.0 else ''
         raise RequestError(
             f'{what}: quaternion is not normalised (norm {norm:.6g}, expected 1 within '
-            f'{QUAT_NORM_TOLERANCE:g})')
+            f'{QUAT_NORM_TOLERANCE:g}){unset}')
     return arr / norm
 
 
