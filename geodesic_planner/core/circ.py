@@ -10,11 +10,16 @@ the start; q' and q'' from the task's velocity and acceleration through the Jaco
 quintic Hermite spline between the nodes; the mesh is refined until the spline's tool stays within
 :data:`ARC_TOLERANCE` of the arc.
 
-Refusals (:class:`~.errors.RequestError`): start, interim and goal collinear (no circle through
-them); start and goal at radii from the centre differing by more than :data:`RADIUS_TOLERANCE`;
-start and goal at the same place (a full circle); a centre with start and goal on opposite sides
-(the plane of the shorter arc is undefined). :class:`~.errors.PathFollowError` where the arm
-cannot follow the arc (a singularity, a joint limit, a branch switch), with the fraction.
+Refusals (:class:`~.errors.RequestError`): an interim point closer than :data:`MIN_CHORD_OFFSET`
+(0.1 mm) to the straight line through start and goal (the three points are nearly collinear: no
+unique circle); start and goal at radii from the centre differing by more than
+:data:`RADIUS_TOLERANCE`; start and goal at the same place (a full circle); a centre closer than
+:data:`MIN_CHORD_OFFSET` to that line (start and goal nearly opposite about it: the plane of the
+arc is undefined). Where the arm cannot follow the arc, the one reason, as a LIN gives it: a goal
+pose out of reach (:class:`~.errors.IKError`, the nearest reachable distance), a joint limit on
+the way (:class:`~.errors.LineLimitError`: the joint, the fraction of the arc, the tool's place), a
+singularity (:class:`~.errors.PathFollowError`: the fraction, the tool's place) or the arc leaving
+what the start's branch reaches (:class:`~.errors.LineUnreachableError`).
 """
 from __future__ import annotations
 
@@ -24,22 +29,29 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cancel import checkpoint
+from .continuation import LineFollow, follow_line
 from .errors import IKError, PathFollowError, RequestError
-from .ik import gauss_newton_batch
+from .ik import DEFAULT_IK_TOLERANCE, IKSolution, gauss_newton_batch, solve_ik
 from .kinematics import Chain
+from .limits import BETWEEN, LIMIT_SLACK, line_limit_error
 from .path import JointPath, check_order, check_s
 from .polynomials import QuinticHermite
 from .transforms import so3_exp, so3_log
 
-__all__ = ['ARC_TOLERANCE', 'RADIUS_TOLERANCE', 'Arc', 'ArcPath', 'arc_about', 'arc_through', 'plan_arc']
+__all__ = ['ARC_TOLERANCE', 'MIN_CHORD_OFFSET', 'RADIUS_TOLERANCE', 'Arc', 'ArcPath', 'arc_about', 'arc_through',
+           'plan_arc']
 
 #: The tool stays this close to the arc (position, m) and the slerp (orientation, rad).
 ARC_TOLERANCE = 1e-8
 #: With a centre, start and goal must be at radii within this of each other, m.
 RADIUS_TOLERANCE = 1e-4
-#: Three points are collinear (no circle) when twice the triangle's area is below this times the
-#: product of two of its sides (the sine of the angle at the start).
-COLLINEAR_SINE = 1e-9
+#: The interim point (or the centre) must lie at least this far from the straight line through
+#: start and goal, m. Closer, the three points are (nearly) collinear and the circle is set by the
+#: input's rounding: an interim point on the chord's midpoint rounded to 1e-6 m gives a radius of
+#: kilometres and a plane at random (a centre: start and goal nearly opposite about it, the plane
+#: of the arc undefined). Pilz bounds the same triangle by its doubled area, |(I - A) x (B - A)|
+#: >= 1e-5 m^2 (1e-4 m from a 0.1 m chord); a distance states it whatever the chord's length.
+MIN_CHORD_OFFSET = 1e-4
 #: Start and goal closer than this are the same place (a full circle), m.
 SAME_POINT = 1e-9
 #: Largest arc swept between two mesh nodes at first, rad; the mesh is refined where needed.
@@ -49,6 +61,8 @@ MAX_ROUNDS = 12
 MAX_NODES = 4000
 #: IK residual (weighted embedding) at a node that counts as on the arc.
 NODE_RESIDUAL = 1e-12
+#: The arc, as the refusals name it.
+ARC = 'CIRC: the arc'
 
 
 @dataclass(frozen=True)
@@ -104,21 +118,29 @@ def _check_ends(p_a: np.ndarray, p_b: np.ndarray) -> None:
                            '(give a goal elsewhere on the circle)')
 
 
+def _chord_offset(p_a: np.ndarray, p: np.ndarray, p_b: np.ndarray) -> float:
+    """Distance (m) of p from the straight line through p_a and p_b (each (3,), m; p_a != p_b)."""
+    e = (p_b - p_a) / np.linalg.norm(p_b - p_a)
+    return float(np.linalg.norm(np.cross(p - p_a, e)))
+
+
 def arc_through(p_a: np.ndarray, p_i: np.ndarray, p_b: np.ndarray) -> Arc:
     """The arc from p_a through the interim point p_i to p_b (each (3,), m): its centre is the
     circumcentre of the three points; the arc may exceed 180 degrees.
 
     Raises:
-        RequestError: start and goal at the same place; the three points collinear.
+        RequestError: start and goal at the same place; the interim point closer than
+            :data:`MIN_CHORD_OFFSET` to the straight line through them (nearly collinear).
     """
     p_a, p_i, p_b = (np.asarray(p, dtype=float).reshape(3) for p in (p_a, p_i, p_b))
     _check_ends(p_a, p_b)
+    offset = _chord_offset(p_a, p_i, p_b)
+    if not offset >= MIN_CHORD_OFFSET:
+        raise RequestError(f'CIRC: the interim point is {offset:.2g} m from the straight line through start '
+                           f'and goal (at least {MIN_CHORD_OFFSET:g} m needed): the three points are (nearly) '
+                           'collinear, no unique circle passes through them')
     d1, d2 = p_i - p_a, p_b - p_a
     n = np.cross(d1, d2)
-    if np.linalg.norm(n) <= COLLINEAR_SINE * np.linalg.norm(d1) * np.linalg.norm(d2) or min(
-            np.linalg.norm(d1), np.linalg.norm(p_b - p_i)) <= SAME_POINT:
-        raise RequestError('CIRC: start, interim and goal are collinear (or two of them coincide): '
-                           'no circle passes through them')
     # (c - a) . d1 = |d1|^2 / 2, (c - a) . d2 = |d2|^2 / 2, (c - a) . n = 0
     centre = p_a + np.linalg.solve(np.stack([d1, d2, n]), np.array([d1 @ d1 / 2, d2 @ d2 / 2, 0.0]))
     axis = n / np.linalg.norm(n)
@@ -141,7 +163,8 @@ def arc_about(p_a: np.ndarray, centre: np.ndarray, p_b: np.ndarray) -> Arc:
 
     Raises:
         RequestError: start and goal at the same place; radii differing by more than the
-            tolerance; start and goal opposite about the centre (the plane is undefined).
+            tolerance; the centre closer than :data:`MIN_CHORD_OFFSET` to the straight line
+            through start and goal (they are nearly opposite about it: the plane is undefined).
     """
     p_a, centre, p_b = (np.asarray(p, dtype=float).reshape(3) for p in (p_a, centre, p_b))
     _check_ends(p_a, p_b)
@@ -153,10 +176,12 @@ def arc_about(p_a: np.ndarray, centre: np.ndarray, p_b: np.ndarray) -> Arc:
         raise RequestError('CIRC: the centre is at the start or the goal (radius 0)')
     e = (p_b - p_a) / np.linalg.norm(p_b - p_a)
     centre = centre - ((centre - 0.5 * (p_a + p_b)) @ e) * e
+    offset = _chord_offset(p_a, centre, p_b)
+    if not offset >= MIN_CHORD_OFFSET:
+        raise RequestError(f'CIRC: the centre is {offset:.2g} m from the straight line through start and '
+                           f'goal (at least {MIN_CHORD_OFFSET:g} m needed): start and goal are (nearly) '
+                           'opposite about it, the plane of the arc is undefined (give an interim point instead)')
     n = np.cross(p_a - centre, p_b - centre)
-    if np.linalg.norm(n) <= COLLINEAR_SINE * r_a * r_b:
-        raise RequestError('CIRC: start and goal are opposite about the centre: the plane of the arc '
-                           'is undefined (give an interim point instead)')
     axis = n / np.linalg.norm(n)
     cos_t = float((p_a - centre) @ (p_b - centre)) / float(np.linalg.norm(p_a - centre) ** 2)
     return _arc(centre, p_a, axis, math.acos(max(-1.0, min(1.0, cos_t))))
@@ -222,43 +247,32 @@ def _rates(robot: Chain, arc: Arc, omega: np.ndarray, s: np.ndarray, q: np.ndarr
 
 def _follow(robot: Chain, arc: Arc, R_a: np.ndarray, w_body: np.ndarray, s: np.ndarray,
             seeds: np.ndarray, weights: tuple[float, float]) -> np.ndarray:
-    """Joints on the arc at s (N,), each solved from its seed; PathFollowError where not reached."""
+    """Joints on the arc at s (N,), each solved from its seed within the limits; PathFollowError
+    where a node is not reached (:func:`plan_arc` then finds the reason by continuation)."""
     q, res, _, _ = gauss_newton_batch(robot, _targets(arc, R_a, w_body, s), seeds, position_weight=weights[0],
                                       orientation_weight=weights[1], max_iterations=10,
                                       residual_tol=0.1 * NODE_RESIDUAL)
     bad = np.flatnonzero(~(res < NODE_RESIDUAL) | ~robot.within_limits(q))
     if bad.size:
         k = int(bad[0])
-        raise PathFollowError(f'CIRC: the arm cannot follow the arc at {100.0 * s[k]:.1f} % of the way '
-                              '(a joint limit, a singularity or out of reach)', fraction=float(s[k]))
+        raise PathFollowError(f'{ARC}: its node at {100.0 * s[k]:.3g} % of the way is not reached from the '
+                              'neighbouring nodes on the start\'s branch', fraction=float(s[k]))
     return q
 
 
-def plan_arc(robot: Chain, q_a: np.ndarray, T_b: np.ndarray, arc: Arc, *,
-             weights: tuple[float, float] = (1.0, 1.0)) -> ArcPath:
-    """The CIRC path from joints q_a (dof,) along ``arc`` to the goal pose T_b (4x4, base frame).
-
-    The orientation follows the slerp from FK(q_a) to T_b; the arc must start at FK(q_a)'s
-    position and end at T_b's (within ARC_TOLERANCE). Nodes are solved one after the other from
-    the start (each seeded by the previous node's Taylor step), then the mesh is refined until the
-    spline's tool is within ARC_TOLERANCE of the arc and the slerp at every interval's midpoint.
-
-    Raises:
-        RequestError: the arc does not start or end at the poses.
-        PathFollowError: the arm cannot follow the arc (the fraction where).
-    """
-    q_a = robot.check_joints(q_a, 'start joints')
-    T_a = robot.fk(q_a)
-    for name, p, want in (('start', arc.derivatives(np.zeros(1))[0][0], T_a[:3, 3]),
-                          ('goal', arc.derivatives(np.ones(1))[0][0], np.asarray(T_b)[:3, 3])):
-        if np.linalg.norm(p - want) > 1e3 * ARC_TOLERANCE:
-            raise RequestError(f'CIRC: the arc does not pass the {name} position (off by '
-                               f'{np.linalg.norm(p - want):.3g} m)')
-    R_a = T_a[:3, :3]
-    w_body = so3_log(R_a.T @ np.asarray(T_b)[:3, :3])
+def _first_mesh(robot: Chain, arc: Arc, R_a: np.ndarray, w_body: np.ndarray, q_a: np.ndarray,
+                weights: tuple[float, float], guide: LineFollow | None) -> tuple[np.ndarray, ...]:
+    """s, q, q', q'' at the first mesh's nodes (at most NODE_ANGLE apart, 8 intervals at least):
+    solved one after the other from the start, each seeded by the previous node's Taylor step,
+    or all at once from the continuation's samples ``guide``."""
     omega = R_a @ w_body                           # constant angular velocity, base frame
     m = max(8, math.ceil(arc.angle / NODE_ANGLE))
     s = np.linspace(0.0, 1.0, m + 1)
+    if guide is not None:
+        q = _follow(robot, arc, R_a, w_body, s, guide.seeds(s), weights)
+        q[0] = q_a
+        dq, ddq, _ = _rates(robot, arc, omega, s, q)
+        return s, q, dq, ddq
     q = np.empty((s.size, robot.dof))
     q[0] = q_a
     dq = np.zeros_like(q)
@@ -271,9 +285,17 @@ def plan_arc(robot: Chain, q_a: np.ndarray, T_b: np.ndarray, arc: Arc, *,
         q[k] = _follow(robot, arc, R_a, w_body, s[k:k + 1], seed[None], weights)[0]
         dq[k:k + 1], ddq[k:k + 1], residual = _rates(robot, arc, omega, s[k:k + 1], q[k:k + 1])
         if residual > 1e-6 * max(1.0, arc.radius * arc.angle):
-            raise PathFollowError(f'CIRC: the arm cannot move the tool along the arc at '
-                                  f'{100.0 * s[k]:.1f} % of the way (a singularity: the tool velocity '
-                                  'is not reachable)', fraction=float(s[k]))
+            raise PathFollowError(f'{ARC}: the tool velocity is not reachable at its node at '
+                                  f'{100.0 * s[k]:.3g} % of the way', fraction=float(s[k]))
+    return s, q, dq, ddq
+
+
+def _pull_back(robot: Chain, arc: Arc, R_a: np.ndarray, w_body: np.ndarray, q_a: np.ndarray,
+               weights: tuple[float, float], guide: LineFollow | None) -> ArcPath:
+    """The first mesh, refined until the spline's tool is within ARC_TOLERANCE of the arc and the
+    slerp at every interval's midpoint."""
+    omega = R_a @ w_body
+    s, q, dq, ddq = _first_mesh(robot, arc, R_a, w_body, q_a, weights, guide)
     for _ in range(MAX_ROUNDS):
         checkpoint()
         path = ArcPath(robot, arc, R_a, w_body, s, q, dq, ddq)
@@ -295,3 +317,106 @@ def plan_arc(robot: Chain, q_a: np.ndarray, T_b: np.ndarray, arc: Arc, *,
         q, dq, ddq = (np.concatenate([u, v])[order] for u, v in ((q, q_new), (dq, dq_new), (ddq, ddq_new)))
     raise IKError(f'CIRC: the spline between {s.size} nodes does not stay within {ARC_TOLERANCE:g} m '
                   'of the arc (the joint path is too sharp there)')
+
+
+def _outside_limits(robot: Chain, path: ArcPath) -> tuple[float, int, float] | None:
+    """(s, joint, bound) of the first place where the path's joints leave their position limits
+    (checked at the nodes and BETWEEN points between each two), or None."""
+    nodes = path.s_nodes
+    between = nodes[:-1, None] + np.diff(nodes)[:, None] * (np.arange(1, BETWEEN + 1) / (BETWEEN + 1))
+    s = np.sort(np.concatenate([nodes, between.ravel()]))
+    q = path.evaluate(s, 0)[0]
+    out = (q < robot.lower - LIMIT_SLACK) | (q > robot.upper + LIMIT_SLACK)
+    if not np.any(out):
+        return None
+    k = int(np.argmax(np.any(out, axis=1)))
+    j = int(np.argmax(out[k]))
+    return float(s[k]), j, float(robot.upper[j] if q[k, j] > robot.upper[j] else robot.lower[j])
+
+
+def _goal_error(robot: Chain, T_b: np.ndarray, goal: IKSolution, tolerance: float | None) -> IKError:
+    """The refusal of a CIRC whose goal pose no configuration reaches (``goal``: the nearest)."""
+    x, y, z = T_b[:3, 3]
+    where = f'CIRC: the goal pose (tool at {x:.4f}, {y:.4f}, {z:.4f} m)'
+    if not robot.within_limits(goal.q, 1e-9):
+        why = f'is reached by robot {robot.name!r} only outside its joint limits'
+    else:
+        tol = DEFAULT_IK_TOLERANCE if tolerance is None else tolerance
+        why = (f'is out of reach of robot {robot.name!r}: the nearest reachable pose is '
+               f'{goal.position_error:.4g} m and {goal.orientation_error:.4g} rad away (weighted distance '
+               f'{goal.residual:.4g}, tolerance {tol:.3g})')
+    return IKError(f'{where} {why}', residual=goal.residual, iterations=goal.iterations)
+
+
+def _reason(robot: Chain, q_a: np.ndarray, T_b: np.ndarray, arc: Arc, w_body: np.ndarray,
+            weights: tuple[float, float], tolerance: float | None) -> LineFollow:
+    """Why the mesh failed, raised as the one reason, as a LIN gives it; or the continuation's
+    samples along the whole arc (the mesh's steps jumped), to seed the mesh again.
+
+    Raises:
+        IKError: the goal pose is out of reach (checked first: the reason whatever the way).
+        LineLimitError, PathFollowError, LineUnreachableError: a joint limit, a singularity, or
+            the arc leaving what the start's branch reaches, where the continuation
+            (:func:`~.continuation.follow_line` on the arc's poses) stops: the fraction of the
+            arc and the tool's place.
+    """
+    goal = solve_ik(robot, T_b, q_a, position_weight=weights[0], orientation_weight=weights[1],
+                    tolerance=tolerance, raise_on_failure=False)
+    if not goal.success:
+        raise _goal_error(robot, T_b, goal, tolerance)
+    T_a = robot.fk(q_a)
+    follow = follow_line(robot, q_a, T_a, np.asarray(T_b, dtype=float), w_body, position_weight=weights[0],
+                         orientation_weight=weights[1], name=ARC,
+                         task=lambda s: (_targets(arc, T_a[:3, :3], w_body, s), arc.derivatives(s)[1]))
+    if follow.error is not None:
+        raise follow.error
+    return follow
+
+
+def plan_arc(robot: Chain, q_a: np.ndarray, T_b: np.ndarray, arc: Arc, *,
+             weights: tuple[float, float] = (1.0, 1.0), tolerance: float | None = None) -> ArcPath:
+    """The CIRC path from joints q_a (dof,) along ``arc`` to the goal pose T_b (4x4, base frame).
+
+    The orientation follows the slerp from FK(q_a) to T_b; the arc must start at FK(q_a)'s
+    position and end at T_b's (within ARC_TOLERANCE). Nodes are solved one after the other from
+    the start (each seeded by the previous node's Taylor step), then the mesh is refined until the
+    spline's tool is within ARC_TOLERANCE of the arc and the slerp at every interval's midpoint,
+    and the joints are checked against their limits. Where that fails, the goal pose's IK and the
+    continuation along the arc tell why and where (or seed the mesh, where the arc is followable).
+
+    Args:
+        weights: the metric's position and orientation weights (the IK's).
+        tolerance: the goal IK's tolerance for telling a goal out of reach (as a LIN's goal pose;
+            default :data:`~.ik.DEFAULT_IK_TOLERANCE`).
+    Raises:
+        RequestError: the arc does not start or end at the poses.
+        IKError: the goal pose is out of reach (the nearest reachable distance).
+        LineLimitError: a joint limit on the way (the joint, the fraction of the arc, the place).
+        PathFollowError: a singularity on the way; LineUnreachableError: the arc leaves what the
+            start's branch reaches (each with the fraction and the tool's place).
+    """
+    q_a = robot.check_joints(q_a, 'start joints')
+    T_a = robot.fk(q_a)
+    for name, p, want in (('start', arc.derivatives(np.zeros(1))[0][0], T_a[:3, 3]),
+                          ('goal', arc.derivatives(np.ones(1))[0][0], np.asarray(T_b)[:3, 3])):
+        if np.linalg.norm(p - want) > 1e3 * ARC_TOLERANCE:
+            raise RequestError(f'CIRC: the arc does not pass the {name} position (off by '
+                               f'{np.linalg.norm(p - want):.3g} m)')
+    R_a = T_a[:3, :3]
+    w_body = so3_log(R_a.T @ np.asarray(T_b)[:3, :3])
+    path: ArcPath | None
+    try:
+        path = _pull_back(robot, arc, R_a, w_body, q_a, weights, None)
+        place = _outside_limits(robot, path)
+        if place is None:
+            return path
+    except PathFollowError:
+        path, place = None, None
+    follow = _reason(robot, q_a, T_b, arc, w_body, weights, tolerance)
+    if path is None:              # followable: the mesh's steps jumped; seeded from the samples
+        path = _pull_back(robot, arc, R_a, w_body, q_a, weights, follow)
+        place = _outside_limits(robot, path)
+    if place is not None:         # between two continuation samples: the spline's place
+        s_k, j, bound = place
+        raise line_limit_error(robot, j, bound, s_k, arc.derivatives(np.array([s_k]))[0][0], ARC)
+    return path

@@ -96,7 +96,8 @@ def plan_item(planner: GeodesicPlanner, item: MotionItem, q_start: np.ndarray,
 
     Raises:
         RequestError: an invalid item; IKError: an unreachable goal; PathFollowError: a line or
-            arc the arm cannot follow; BVPError: a geodesic that does not converge.
+            arc the arm cannot follow (LineLimitError past a joint limit, LineUnreachableError out
+            of the branch's reach); BVPError: a geodesic that does not converge.
     """
     _check(item)
     t0 = time.perf_counter()
@@ -110,7 +111,8 @@ def plan_item(planner: GeodesicPlanner, item: MotionItem, q_start: np.ndarray,
         arc = (arc_through(p_a, np.asarray(item.interim, dtype=float), goal[:3, 3]) if item.interim is not None
                else arc_about(p_a, np.asarray(item.centre, dtype=float), goal[:3, 3]))
         path: ArcPath | JointPath = plan_arc(robot, q_start, goal, arc, weights=(
-            planner.metric.position_weight, planner.metric.effective_orientation_weight or 1.0))
+            planner.metric.position_weight, planner.metric.effective_orientation_weight or 1.0),
+            tolerance=planner.ik_tolerance if tolerance is None else tolerance)
         return _finish(path, planner, 'circ', t0)
     if item.goal_joints is not None:
         q_goal = robot.check_joints(item.goal_joints, 'goal_joints')
