@@ -21,7 +21,12 @@ if TYPE_CHECKING:
     from .geodesic import GeodesicPath
     from .piecewise import PiecewiseGeodesicPath
 
-__all__ = ['PlanRequest']
+__all__ = ['MAX_ITEMS', 'MAX_VIA_POSES', 'PlanRequest']
+
+#: Most via poses in one request (a PlanTrajectory request's ``via_poses``, a YAML request's ``via``).
+MAX_VIA_POSES = 100
+#: Most items of one sequence (a PlanSequence request's ``items``, a YAML request's ``sequence``).
+MAX_ITEMS = 100
 
 
 @dataclass
@@ -46,8 +51,13 @@ class PlanRequest:
         still be open (a node starts at the robot's current joint state).
 
         Raises:
-            RequestError: no goal (unless a sequence), or via poses ending at goal joints.
+            RequestError: no goal (unless a sequence), via poses ending at goal joints, more than
+                :data:`MAX_VIA_POSES` via poses or :data:`MAX_ITEMS` items.
         """
+        if len(self.items) > MAX_ITEMS:
+            raise RequestError(f'sequence: {len(self.items)} items, more than {MAX_ITEMS}')
+        if len(self.via) > MAX_VIA_POSES:
+            raise RequestError(f'via: {len(self.via)} poses, more than {MAX_VIA_POSES}')
         if self.items:
             return
         if self.goal is None and self.goal_joints is None:
@@ -67,12 +77,12 @@ class PlanRequest:
 
         ``start_seed`` (dof,) seeds the start pose's IK (e.g. the robot's current joint state).
         """
+        self.check()
         planner = planner or self.planner()
         if self.items:
             return plan_sequence(planner, self.items, start=self.start,  # type: ignore[return-value]
                                  start_joints=self.start_joints, tolerance=self.tolerance,
                                  start_seed=start_seed, mass=self.mass)
-        self.check()
         if self.via:
             return planner.plan_through([self.start, *self.via, self.goal], self.start_joints,
                                         tolerance=self.tolerance, start_seed=start_seed,

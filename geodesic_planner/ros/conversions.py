@@ -20,7 +20,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..core.cancel import checkpoint
-from ..core.errors import FrameError, JointStateError, quoted
+from ..core.errors import FrameError, JointStateError, RequestError, quoted
 from ..core.transforms import make_transform, matrix_to_quat, pose_to_transform, quat_to_matrix
 from ..timing.validate import trajectory_problems
 
@@ -193,22 +193,62 @@ def pose_stamped_to_matrix(msg: PoseStamped, base_frame: str, what: str = 'pose'
     return pose_to_matrix(msg.pose, what)
 
 
-def is_current_state_pose(msg: PoseStamped) -> bool:
-    """True for the "start from the current joint state" marker: empty frame_id, all-zero quaternion."""
+#: What an all-zero start pose means (the hint of an unset start orientation).
+_CURRENT_STATE = 'an all-zero pose (quaternion and position) starts from the current joint state'
+
+
+def _zero_quaternion(msg: PoseStamped) -> bool:
+    """An empty frame_id and an all-zero quaternion (x = y = z = w = 0)."""
     o = msg.pose.orientation
     return msg.header.frame_id == '' and o.x == 0.0 and o.y == 0.0 and o.z == 0.0 and o.w == 0.0
 
 
-def is_empty_pose(msg: PoseStamped) -> bool:
-    """True for a PoseStamped left unset in a PlanTrajectory request.
+def _check_unset_orientation(msg: PoseStamped, what: str, marker: str) -> None:
+    """Refuse an all-zero quaternion under a position that is not zero: a pose whose orientation
+    was left unset, not the ``marker`` (which is all zero, position included).
 
-    Unset means an empty frame_id and either an all-zero quaternion (the marker GetPlan uses too)
-    or the default-constructed pose (position 0, quaternion x = y = z = 0, w = 1): that pose would
-    put the tool at the base frame's origin, inside the robot, so it is read as "not given".
+    Raises:
+        RequestError: naming ``what``, the position and the fix.
     """
-    if is_current_state_pose(msg):
-        return True
+    p = msg.pose.position
+    if p.x != 0.0 or p.y != 0.0 or p.z != 0.0:
+        raise RequestError(
+            f'{what}: the orientation is unset (an all-zero quaternion) at position '
+            f'[{p.x:g}, {p.y:g}, {p.z:g}]: give a unit quaternion (x, y, z, w; w: 1.0 for no rotation); '
+            f'{marker}')
+
+
+def is_current_state_pose(msg: PoseStamped, what: str = 'start') -> bool:
+    """True for the "start from the current joint state" marker: empty frame_id, all-zero quaternion
+    and position.
+
+    Raises:
+        RequestError: an empty frame_id and an all-zero quaternion under a position that is not
+            zero: a pose was given, its orientation unset (named ``what``).
+    """
+    if not _zero_quaternion(msg):
+        return False
+    _check_unset_orientation(msg, what, _CURRENT_STATE)
+    return True
+
+
+def is_empty_pose(msg: PoseStamped, what: str = 'pose') -> bool:
+    """True for a PoseStamped left unset in a request (PlanTrajectory, PlanSequence).
+
+    Unset means an empty frame_id and either all zeros (quaternion and position: the marker GetPlan
+    uses too) or the default-constructed pose (position 0, quaternion x = y = z = 0, w = 1): that
+    pose would put the tool at the base frame's origin, inside the robot, so it is read as "not
+    given".
+
+    Raises:
+        RequestError: an empty frame_id and an all-zero quaternion under a position that is not
+            zero: a pose was given, its orientation unset (named ``what``).
+    """
     p, o = msg.pose.position, msg.pose.orientation
+    if _zero_quaternion(msg):
+        _check_unset_orientation(msg, what, _CURRENT_STATE if what == 'start' else
+                                 f'an all-zero pose (quaternion and position) means "no {what}"')
+        return True
     return (msg.header.frame_id == '' and p.x == 0.0 and p.y == 0.0 and p.z == 0.0
             and o.x == 0.0 and o.y == 0.0 and o.z == 0.0 and o.w == 1.0)
 

@@ -22,14 +22,11 @@ from ..core.errors import RequestError
 from ..core.motions import MOTION_TYPES, MotionItem
 from ..core.ptp import MassModel, mass_from_urdf
 from ..core.robots import urdf_text
-from ..core.request import PlanRequest
+from ..core.request import MAX_ITEMS, PlanRequest
 from . import conversions as cv
 from .service_requests import request_factor
 
 __all__ = ['MAX_ITEMS', 'SequenceService', 'sequence_request']
-
-#: Most items of one sequence.
-MAX_ITEMS = 100
 #: circ_constraint values.
 CIRC_CONSTRAINTS = ('interim', 'center')
 
@@ -41,10 +38,10 @@ def _item(config: Any, msg: MotionSequenceItem, i: int) -> MotionItem:  # noqa: 
         raise RequestError(f'{what}.motion must be one of {", ".join(MOTION_TYPES)}, got {msg.motion!r}')
     goal = goal_joints = None
     if len(msg.goal_joints.name) or len(msg.goal_joints.position):
-        if not cv.is_empty_pose(msg.goal):
+        if not cv.is_empty_pose(msg.goal, f'{what}.goal'):
             raise RequestError(f'{what}: give goal or goal_joints, not both')
         goal_joints = cv.joint_state_to_vector(msg.goal_joints, config.joint_names, f'{what}.goal_joints')
-    elif not cv.is_empty_pose(msg.goal):
+    elif not cv.is_empty_pose(msg.goal, f'{what}.goal'):
         goal = cv.pose_stamped_to_matrix(msg.goal, config.frame_id, f'{what}.goal')
     point = interim = centre = None
     if motion == 'CIRC':
@@ -72,10 +69,10 @@ def sequence_request(config: Any, msg: PlanSequence.Request, mass: MassModel | N
         raise RequestError(f'items: {len(msg.items)} items, more than {MAX_ITEMS}')
     start = start_joints = None
     if len(msg.start_joints.name) or len(msg.start_joints.position):
-        if not cv.is_empty_pose(msg.start):
+        if not cv.is_empty_pose(msg.start, 'start'):
             raise RequestError('start: give start or start_joints, not both')
         start_joints = cv.joint_state_to_vector(msg.start_joints, config.joint_names, 'start_joints')
-    elif not cv.is_empty_pose(msg.start):
+    elif not cv.is_empty_pose(msg.start, 'start'):
         start = cv.pose_stamped_to_matrix(msg.start, config.frame_id, 'start')
     items = [_item(config, it, i) for i, it in enumerate(msg.items)]
     request = PlanRequest(config.robot, start, None, start_joints, None, items=items, mass=mass)

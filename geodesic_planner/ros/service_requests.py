@@ -15,14 +15,11 @@ from nav_msgs.srv import GetPlan
 from sensor_msgs.msg import JointState
 
 from ..core.errors import RequestError
-from ..core.request import PlanRequest
+from ..core.request import MAX_VIA_POSES, PlanRequest
 from . import conversions as cv
 from .planning import PlannerConfig
 
 __all__ = ['MAX_VIA_POSES', 'get_plan_request', 'plan_trajectory_request', 'request_factor']
-
-#: Most via poses in one PlanTrajectory request.
-MAX_VIA_POSES = 100
 
 
 def _tolerance(value: float) -> float | None:
@@ -58,7 +55,7 @@ def get_plan_request(config: PlannerConfig, msg: GetPlan.Request) -> PlanRequest
     goal = cv.pose_stamped_to_matrix(msg.goal, config.frame_id, 'goal')
     tolerance = _tolerance(msg.tolerance)
     start = None
-    if not cv.is_current_state_pose(msg.start):
+    if not cv.is_current_state_pose(msg.start, 'start'):
         start = cv.pose_stamped_to_matrix(msg.start, config.frame_id, 'start')
     return PlanRequest(config.robot, start, goal, tolerance=tolerance)
 
@@ -76,7 +73,7 @@ def plan_trajectory_request(config: PlannerConfig, msg: PlanTrajectory.Request
     blend_radius = _blend_radius(msg.blend_radius)     # checked even without via poses
 
     def end(pose: PoseStamped, joints: JointState, what: str) -> tuple[np.ndarray | None, np.ndarray | None]:
-        given_pose = not cv.is_empty_pose(pose)
+        given_pose = not cv.is_empty_pose(pose, what)
         if len(joints.name) or len(joints.position):
             if given_pose:
                 raise RequestError(f'{what}: give {what} or {what}_joints, not both')
