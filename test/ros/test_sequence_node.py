@@ -148,3 +148,15 @@ def test_ptp_of_least_kinetic_energy_on_a_urdf_with_inertias(helper: Any, tmp_pa
         assert off_line > 0.05                                      # not the joint line
     finally:
         p.stop()
+
+
+def test_a_circ_goal_out_of_reach_is_no_ik_solution(node) -> None:
+    """Issue 36 item 5b: was PLANNING_FAILED '(a joint limit, a singularity or out of reach)'. The
+    goal is 1.49 m from the shoulder, beyond the UR5e's 1.15 m of links."""
+    far = moved([-0.9, 0.0, 0.0])
+    interim = 0.5 * (T0[:3, 3] + far[:3, 3]) + [0.0, 0.1, 0.1]
+    resp = ask(node, [item('LIN', moved([0.0, 0.0, 0.05])), item('CIRC', far, circ=('interim', interim))])
+    assert resp.error_code.val == PlanErrorCode.NO_IK_SOLUTION, resp.message
+    assert resp.failed_item == 1, resp.message
+    assert 'sequence item 1 (CIRC)' in resp.message and 'the nearest reachable pose is' in resp.message
+    assert len(resp.trajectory.points) == 0
