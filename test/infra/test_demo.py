@@ -99,6 +99,53 @@ def test_demo_via_blend_summary_on_known_motion() -> None:
     assert s['max_distance_from_polyline_m'] == pytest.approx(3 * (1 - math.cos(0.1)), abs=1e-12)
 
 
+@pytest.mark.parametrize('name', ['planar_3r', 'rrpp', 'ur5e', 'panda'])
+def test_demo_boxes_refused_on_every_branch_then_free_for_every_preset(name: str) -> None:
+    """The collision step's box, planned as the node plans a preset (capsules, default padding, the
+    default IK branch then the others): across, the motion is refused on the way (not at the start
+    or goal) on every branch; aside, the default branch is free."""
+    from geodesic_planner import GeodesicPlanner, load_robot
+    from geodesic_planner.core.branches import first_clear, start_branches
+    from geodesic_planner.core.collision import DEFAULT_PADDING, CollisionModel, SceneObject, Shape
+    from geodesic_planner.core.errors import PathInCollisionError
+    from geodesic_planner.core.robots import PRESETS
+    from tools.demo import demo_poses
+    from tools.demo_collision import demo_boxes
+
+    assert sorted(PRESETS) == ['panda', 'planar_3r', 'rrpp', 'ur5e']        # a new preset: add it here
+    robot = load_robot(name)
+    start, goal = demo_poses(robot)
+    boxes = demo_boxes(robot, start, goal)
+    planner = GeodesicPlanner(robot)
+    model = CollisionModel.for_robot(robot, padding=DEFAULT_PADDING)
+
+    def attempt(q: np.ndarray | None) -> tuple:
+        path = planner.plan(start, goal) if q is None else planner.plan(None, goal, start_joints=q)
+        return path, path.timed()
+
+    def branches(first: object) -> list[np.ndarray]:
+        return start_branches(planner, start, first.q_start)   # type: ignore[attr-defined]
+
+    def scene(centre: np.ndarray) -> CollisionModel:
+        pose = np.eye(4)
+        pose[:3, 3] = centre
+        return model.with_objects([SceneObject('box', Shape('box', (boxes.edge,) * 3), pose)])
+
+    assert 0.01 <= boxes.edge <= 0.3
+    path, _ = attempt(None)
+    ends = path.evaluate(np.array([0.0, 1.0]), 0)[0]
+    assert np.all(scene(boxes.across).distances(ends)[0] > DEFAULT_PADDING)   # start and goal clear
+    with pytest.raises(PathInCollisionError, match="'box' and 'link_") as err:
+        first_clear(attempt, scene(boxes.across), branches)
+    assert 0.0 < err.value.fraction < 1.0
+    _, _, found, branch = first_clear(attempt, scene(boxes.aside), branches)
+    assert branch == 'default' and found.min_clearance > DEFAULT_PADDING
+    if name == 'planar_3r':     # msg_examples/scene_box.yaml's box, and its place aside
+        assert boxes.edge == 0.3
+        np.testing.assert_allclose(boxes.across, [2.0, 2.0, 0.0], atol=1e-12)
+        np.testing.assert_allclose(boxes.aside, [2.3, 2.3, 0.0], atol=1e-12)
+
+
 @pytest.mark.ros
 def test_demo_end_to_end(tmp_path: Path) -> None:
     """The main job as the README runs it (inside the namespace): both nodes, bag, summary, plot."""
@@ -162,7 +209,7 @@ def test_demo_end_to_end(tmp_path: Path) -> None:
     exact = 0.3 / math.sqrt(2.0) - 0.05
     assert 0.9 * exact - 1e-6 <= planned['min_clearance_m'] <= exact + 1e-6, planned
     assert col['min_clearance_aside_samples_m'] >= planned['min_clearance_m'] - 1e-9
-    assert re.search(r'collision: box across the line refused at [\d.]+ % of the way', result.stdout)
+    assert re.search(r'collision: box across the motion refused at [\d.]+ % of the way', result.stdout)
     assert (out / 'collision.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     # The motion types (library): each on its geometry, the blends save time, PTP of least energy.
     motions = summary['motions']
@@ -178,3 +225,24 @@ def test_demo_end_to_end(tmp_path: Path) -> None:
     from geodesic_planner.io.bags import read_trajectories
     topics = sorted({r.topic for r in read_trajectories(out / 'bag')})
     assert topics == ['/geodesic_planner/joint_trajectory', '/trajectory_processor/joint_trajectory']
+
+
+@pytest.mark.ros
+def test_demo_end_to_end_with_another_robot(tmp_path: Path) -> None:
+    """``--robot ur5e`` (documented for every preset): the whole demo passes, its box refused on the
+    way (INVALID_MOTION_PLAN, not GOAL_IN_COLLISION) and planned once moved aside."""
+    out = tmp_path / 'demo'
+    result = subprocess.run([sys.executable, '-m', 'tools.demo', '--output', str(out), '--robot', 'ur5e'],
+                            cwd=ROOT, capture_output=True, text=True, timeout=240)
+    assert result.returncode == 0, result.stdout + result.stderr
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['robot'] == 'ur5e' and len(summary['joint_names']) == 6
+    for part in (summary['planned'], summary['processed']):
+        assert part['max_tool_path_deviation_m'] < 1e-6 and part['goal_position_error_m'] < 1e-9
+    col = summary['collision']
+    assert col['refused']['error_code'] == -2, col['refused']         # INVALID_MOTION_PLAN
+    assert "'box' and 'link_" in col['refused']['message'] and 0.0 < col['refused']['fraction'] < 1.0
+    assert col['planned']['error_code'] == 1 and col['planned']['ik_branch'] == 'default'
+    assert col['planned']['min_clearance_m'] > col['padding_m']
+    for name in ('trajectory.png', 'via_blend.png', 'collision.png', 'sequence.png', 'ptp.png'):
+        assert (out / name).read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
