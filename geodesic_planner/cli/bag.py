@@ -10,9 +10,14 @@ Usage::
 (points, duration, peak |v|, peak |a|, and why it is invalid when it is). ``plot`` writes one PNG
 per processed trajectory: joint positions, velocities and accelerations against time, the planner's
 trajectory (input topic, markers) over the processor's (output topic, lines); trajectories on
-other JointTrajectory topics, or inputs without an output, get a PNG of their own. ``repair``
-rebuilds a bag whose recording was killed (see :func:`geodesic_planner.io.bags.repair`).
-Errors print one line ``ERROR: ...`` and exit with 1.
+other JointTrajectory topics, or inputs without an output, get a PNG of their own. The input and
+output topics are the options when given, else those the recording node saved in the bag's
+``custom_data`` (``input_topic``, ``output_topic``: namespaced nodes record
+``/robot1/geodesic_planner/joint_trajectory``...), else the default names, or the one topic of the
+bag ending in a default name (see :func:`trajectory_topics`). ``repair`` rebuilds a bag whose
+recording was killed (see :func:`geodesic_planner.io.bags.repair`); when the storage file was
+damaged beyond the interruption, it writes what could be read, names what was lost on one
+``ERROR:`` line and exits with 1. Errors print one line ``ERROR: ...`` and exit with 1.
 
 A record that does not decode never fails the whole bag: ``info`` counts and lists such records
 (``undecodable records: N``), ``plot`` skips them and says so on stderr (``skipped N undecodable
@@ -23,22 +28,31 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from dataclasses import dataclass
 from datetime import datetime, UTC
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..core.errors import BagError, GeodesicPlannerError
-from ..io.bags import BagInfo, TrajectoryRecord, UndecodableRecord, bag_info, read_trajectories, repair
+from ..io.bags import (
+    BagInfo,
+    TrajectoryRecord,
+    UndecodableRecord,
+    bag_info,
+    read_custom_data,
+    read_trajectories,
+    repair,
+)
 from ..io.plotting import plot_trajectories
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
+    from collections.abc import Collection, Mapping, Sequence
 
 DEFAULT_INPUT_TOPIC = '/geodesic_planner/joint_trajectory'
 DEFAULT_OUTPUT_TOPIC = '/trajectory_processor/joint_trajectory'
 
-__all__ = ['DEFAULT_INPUT_TOPIC', 'DEFAULT_OUTPUT_TOPIC', 'format_info', 'format_undecodable', 'main',
-           'pair_trajectories', 'plot_bag']
+__all__ = ['DEFAULT_INPUT_TOPIC', 'DEFAULT_OUTPUT_TOPIC', 'TrajectoryTopics', 'format_info', 'format_undecodable',
+           'main', 'pair_trajectories', 'plot_bag', 'plot_pairs', 'trajectory_topics']
 
 
 def _utc(stamp_ns: int | None) -> str:
@@ -113,21 +127,73 @@ def pair_trajectories(
     return pairs
 
 
-def plot_bag(
-    bag: str | Path,
-    output_dir: str | Path,
+@dataclass(frozen=True)
+class TrajectoryTopics:
+    """The topics plotted as before (input) and after (output) processing, and where each came from.
+
+    Attributes:
+        input: the planner's trajectory topic (the processor's input).
+        output: the processor's trajectory topic.
+        input_from: 'option', 'bag' (the bag's custom_data), 'default' or 'topic name'.
+        output_from: likewise.
+    """
+
+    input: str
+    output: str
+    input_from: str
+    output_from: str
+
+
+def _choose(given: str | None, saved: str | None, default: str, topics: Collection[str]) -> tuple[str, str]:
+    if given is not None:
+        return given, 'option'
+    if saved:
+        return saved, 'bag'
+    if default in topics:
+        return default, 'default'
+    namespaced = [t for t in topics if t.endswith(default)]  # /robot1 + /geodesic_planner/...
+    if len(namespaced) == 1:
+        return namespaced[0], 'topic name'
+    return default, 'default'
+
+
+def trajectory_topics(
+    custom_data: Mapping[str, str],
+    topics: Collection[str],
     *,
-    input_topic: str = DEFAULT_INPUT_TOPIC,
-    output_topic: str = DEFAULT_OUTPUT_TOPIC,
-    skipped: list[UndecodableRecord] | None = None,
-) -> list[Path]:
-    """Write PNGs of every trajectory in a bag (input and its processed output together).
+    input_topic: str | None = None,
+    output_topic: str | None = None,
+) -> TrajectoryTopics:
+    """Which recorded topics hold the trajectories before and after processing.
+
+    Each is the option when given; else what the recording node saved in the bag's custom data
+    (``input_topic``, ``output_topic``: the node's resolved names, namespace included); else, for
+    a bag that does not say, the default name when the bag has that topic, or the one topic of
+    the bag whose name ends with it (a namespaced node); else the default.
 
     Args:
-        skipped: undecodable records (not plotted) are appended here.
+        custom_data: the bag's ``custom_data``.
+        topics: the bag's JointTrajectory topics.
+        input_topic, output_topic: given by the user (None: choose).
+    """
+    inp, inp_from = _choose(input_topic, custom_data.get('input_topic'), DEFAULT_INPUT_TOPIC, topics)
+    out, out_from = _choose(output_topic, custom_data.get('output_topic'), DEFAULT_OUTPUT_TOPIC, topics)
+    return TrajectoryTopics(inp, out, inp_from, out_from)
 
-    Returns:
-        The files written, ``trajectory_00.png``, ``trajectory_01.png``, ...
+
+def plot_pairs(
+    bag: str | Path,
+    *,
+    input_topic: str | None = None,
+    output_topic: str | None = None,
+    skipped: list[UndecodableRecord] | None = None,
+) -> tuple[TrajectoryTopics, list[tuple[TrajectoryRecord | None, TrajectoryRecord | None]]]:
+    """What :func:`plot_bag` draws: the topics chosen and the (before, after) pair of each picture.
+
+    Args:
+        input_topic, output_topic: the topics before and after processing (None: as
+            :func:`trajectory_topics` chooses).
+        skipped: undecodable records (not plotted) are appended here.
 
     Raises:
         BagError: unreadable bag or no decodable JointTrajectory in it.
@@ -140,10 +206,41 @@ def plot_bag(
         more = f' ({len(undecodable)} undecodable record(s) skipped)' if undecodable else ''
         msg = f'no trajectory_msgs/msg/JointTrajectory messages in {bag}{more}'
         raise BagError(msg)
-    inputs = [r for r in records if r.topic == input_topic]
-    outputs = [r for r in records if r.topic == output_topic]
+    try:
+        custom = read_custom_data(bag)
+    except BagError:  # the messages were read: plot them with the names alone
+        custom = {}
+    chosen = trajectory_topics(custom, {r.topic for r in records},
+                               input_topic=input_topic, output_topic=output_topic)
+    inputs = [r for r in records if r.topic == chosen.input]
+    outputs = [r for r in records if r.topic == chosen.output]
     pairs = pair_trajectories(inputs, outputs)
-    pairs += [(r, None) for r in records if r.topic not in (input_topic, output_topic)]
+    pairs += [(r, None) for r in records if r.topic not in (chosen.input, chosen.output)]
+    return chosen, pairs
+
+
+def plot_bag(
+    bag: str | Path,
+    output_dir: str | Path,
+    *,
+    input_topic: str | None = None,
+    output_topic: str | None = None,
+    skipped: list[UndecodableRecord] | None = None,
+) -> list[Path]:
+    """Write PNGs of every trajectory in a bag (input and its processed output together).
+
+    Args:
+        input_topic, output_topic: the topics before and after processing (None: as
+            :func:`trajectory_topics` chooses).
+        skipped: undecodable records (not plotted) are appended here.
+
+    Returns:
+        The files written, ``trajectory_00.png``, ``trajectory_01.png``, ...
+
+    Raises:
+        BagError: unreadable bag or no decodable JointTrajectory in it.
+    """
+    _, pairs = plot_pairs(bag, input_topic=input_topic, output_topic=output_topic, skipped=skipped)
     out_dir = Path(output_dir)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -173,8 +270,10 @@ def _parser() -> argparse.ArgumentParser:
     p_plot = sub.add_parser('plot', help='PNG of joint position/velocity/acceleration vs time')
     p_plot.add_argument('bag', help='rosbag2 directory')
     p_plot.add_argument('--output', '-o', required=True, help='directory for the PNG files')
-    p_plot.add_argument('--input-topic', default=DEFAULT_INPUT_TOPIC, help='trajectory before processing')
-    p_plot.add_argument('--output-topic', default=DEFAULT_OUTPUT_TOPIC, help='trajectory after processing')
+    p_plot.add_argument('--input-topic', help='trajectory before processing (default: the input topic saved in '
+                        f'the bag, else {DEFAULT_INPUT_TOPIC})')
+    p_plot.add_argument('--output-topic', help='trajectory after processing (default: the output topic saved in '
+                        f'the bag, else {DEFAULT_OUTPUT_TOPIC})')
     p_rep = sub.add_parser('repair', help='make an interrupted recording readable (rebuild index and metadata)')
     p_rep.add_argument('bag', help='rosbag2 directory')
     return parser
@@ -202,10 +301,19 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f'{state}: {report.path} ({report.storage}): {report.note}; {counts}')
             if report.damaged_file is not None:
                 print(f'original storage file kept as {report.damaged_file}')
+            if report.repaired and report.custom_data:
+                print('custom data kept: ' + ', '.join(f'{k}={v}' for k, v in sorted(report.custom_data.items())))
+            if report.damage:
+                _error(f'{report.path} was damaged (what could be read was written): {"; ".join(report.damage)}')
+                return 1
     except (GeodesicPlannerError, OSError) as err:
-        print(f'ERROR: {" ".join(str(err).split())}', file=sys.stderr)  # one line, also for YAML errors
+        _error(str(err))
         return 1
     return 0
+
+
+def _error(text: str) -> None:
+    print(f'ERROR: {" ".join(text.split())}', file=sys.stderr)  # one line, also for YAML errors
 
 
 if __name__ == '__main__':

@@ -7,10 +7,11 @@ import subprocess
 import sys
 import textwrap
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from rosbags.highlevel import AnyReader
+from rosbags.highlevel import AnyReader, AnyReaderError
 
 from bag_util import IN, JS, copy_as_killed, joint_state, trajectory
 from geodesic_planner.io.bags import (
@@ -183,3 +184,73 @@ def test_garbage_and_corrupt_chunks_never_raise(tmp_path, ts):
     garbage.mkdir()
     (garbage / 'garbage.mcap').write_bytes(b'\x89MCAP0\r\n' + os.urandom(50_000))
     assert repair(garbage).messages == {}
+
+
+# ------------------------------------------------------------------ what the metadata held
+#: custom data as the trajectory processor writes it (ros/recording.py: BagRecording.open)
+PROCESSOR_CUSTOM_DATA = {'recorded_by': 'trajectory_processor', 'input_topic': IN,
+                         'output_topic': '/trajectory_processor/joint_trajectory',
+                         'sample_period': '0.01', 'velocity_scaling': '0.5'}
+
+
+def _metadata(bag):
+    """metadata.yaml's fields (PyYAML), and the metadata and connections as rosbags reads them."""
+    import yaml
+    from rosbags.rosbag2 import Reader
+    fields = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    with Reader(bag) as reader:
+        conns = [(c.topic, c.msgtype, c.msgcount, c.digest, c.ext.offered_qos_profiles) for c in reader.connections]
+        seen = SimpleNamespace(duration=reader.duration, start_time=reader.start_time, end_time=reader.end_time,
+                               message_count=reader.message_count, ros_distro=reader.ros_distro,
+                               custom=reader.storage.metadata.custom)
+        return fields, seen, conns
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_repair_keeps_everything_the_metadata_held(tmp_path, ts, storage):
+    """A killed recording, repaired: metadata.yaml equal field by field to that of the same
+    recording closed normally (custom data, file name, counts, times, topics, QoS, hashes)."""
+    rec = BagRecorder(tmp_path / 'live', storage=storage, topics={JS: JOINT_STATE, IN: JOINT_TRAJECTORY},
+                      custom_data=PROCESSOR_CUSTOM_DATA, flush_period=None)
+    rec.open()
+    for i in range(10):
+        rec.write(JS, 1000 + i, to_cdr(joint_state(i), JOINT_STATE, ts))
+    rec.write(IN, 2000, to_cdr(trajectory([0.0, 1.0], np.zeros((2, 3))), JOINT_TRAJECTORY, ts))
+    rec.flush()
+    copy_as_killed(rec.path, tmp_path / 'killed')
+    rec.close()
+
+    report = repair(tmp_path / 'killed')
+    assert report.repaired
+    (before, meta_before, conns_before), (after, meta_after, conns_after) = (
+        _metadata(tmp_path / 'live'), _metadata(tmp_path / 'killed'))
+    assert after['custom_data'] == PROCESSOR_CUSTOM_DATA
+    assert set(after) == set(before)
+    for key, value in before.items():
+        assert after[key] == value, key
+    assert meta_after == meta_before and meta_after.custom == PROCESSOR_CUSTOM_DATA
+    assert conns_after == conns_before
+    assert report.damage == ()  # an interrupted recording is not a damaged one
+    assert bag_info(tmp_path / 'killed').custom_data == PROCESSOR_CUSTOM_DATA
+
+
+def test_repair_keeps_custom_data_and_distro_of_an_old_metadata_file(tmp_path, ts):
+    """A closed bag whose storage file lost its end later: its metadata.yaml still says it all."""
+    import yaml
+    with BagRecorder(tmp_path / 'bag', topics={JS: JOINT_STATE}) as rec:
+        for i in range(5):
+            rec.write(JS, 1000 + i, to_cdr(joint_state(i), JOINT_STATE, ts))
+    meta_path = tmp_path / 'bag' / 'metadata.yaml'
+    meta = yaml.safe_load(meta_path.read_text())
+    meta['rosbag2_bagfile_information'].update(custom_data={'operator': 'ann', 'cell': '3'}, ros_distro='jazzy')
+    meta_path.write_text(yaml.safe_dump(meta))
+    mcap = tmp_path / 'bag' / 'bag.mcap'
+    mcap.write_bytes(mcap.read_bytes()[:-30])  # footer cut: rosbags cannot read it, repair has work to do
+    with pytest.raises(AnyReaderError, match='end magic'), AnyReader([tmp_path / 'bag']) as reader:
+        list(reader.messages())
+    report = repair(tmp_path / 'bag')
+    assert report.repaired
+    after, meta, _ = _metadata(tmp_path / 'bag')
+    assert after['custom_data'] == meta.custom == {'operator': 'ann', 'cell': '3'}
+    assert after['ros_distro'] == meta.ros_distro == 'jazzy'
+    assert after['message_count'] == meta.message_count == 5

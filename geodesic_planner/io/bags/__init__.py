@@ -4,6 +4,7 @@
 * :mod:`.storage`: MCAP and SQLite storage files that can be flushed while recording;
 * :mod:`.recorder`: :class:`BagRecorder`, crash-tolerant recording of raw CDR messages;
 * :mod:`.reader`: :func:`read_trajectories` (JointTrajectory messages as arrays) and :func:`bag_info`;
+* :mod:`.salvage`: what a damaged or interrupted storage file still holds (SQLite);
 * :mod:`.repair`: :func:`repair` of a recording killed before ``close()``.
 """
 from __future__ import annotations
@@ -16,6 +17,7 @@ from .reader import (
     TrajectorySummary,
     UndecodableRecord,
     bag_info,
+    read_custom_data,
     read_trajectories,
     summarize_trajectory,
 )
@@ -38,6 +40,7 @@ __all__ = [
     'make_typestore',
     'new_bag_path',
     'qos_profile',
+    'read_custom_data',
     'read_trajectories',
     'repair',
     'summarize_trajectory',

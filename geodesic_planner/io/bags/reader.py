@@ -41,6 +41,7 @@ __all__ = [
     'TrajectorySummary',
     'UndecodableRecord',
     'bag_info',
+    'read_custom_data',
     'read_trajectories',
     'summarize_trajectory',
     'trajectory_record',
@@ -342,6 +343,37 @@ def summarize_trajectory(rec: TrajectoryRecord, index: int) -> TrajectorySummary
     )
 
 
+def _read_metadata(bag: Path) -> tuple[str, dict[str, str]]:
+    """(storage identifier, custom data) of a bag directory's ``metadata.yaml``.
+
+    Raises:
+        BagError: the file cannot be read or is not YAML.
+    """
+    try:
+        meta = load_yaml((bag / 'metadata.yaml').read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
+        msg = f'cannot read {bag / "metadata.yaml"}: {err}'
+        raise BagError(msg) from err
+    meta = meta if isinstance(meta, dict) else {}
+    bagfile = meta.get('rosbag2_bagfile_information')
+    bagfile = bagfile if isinstance(bagfile, dict) else {}
+    custom_raw = bagfile.get('custom_data')
+    custom = {str(k): str(v) for k, v in custom_raw.items()} if isinstance(custom_raw, dict) else {}
+    return str(bagfile.get('storage_identifier', '?')), custom
+
+
+def read_custom_data(path: str | os.PathLike[str]) -> dict[str, str]:
+    """The ``custom_data`` of a bag's ``metadata.yaml`` ({} when it has none).
+
+    The trajectory processor's recordings say there which topics were its input and output
+    (``input_topic``, ``output_topic``) and its ``sample_period`` and ``velocity_scaling``.
+
+    Raises:
+        BagError: missing or unreadable bag directory or ``metadata.yaml``.
+    """
+    return _read_metadata(_resolve_bag_dir(path))[1]
+
+
 def bag_info(path: str | os.PathLike[str]) -> BagInfo:
     """Topics, counts, times and a summary of every JointTrajectory of a bag.
 
@@ -352,17 +384,7 @@ def bag_info(path: str | os.PathLike[str]) -> BagInfo:
         BagError: missing or unreadable bag.
     """
     src = OpenBag(path)
-    try:
-        meta = load_yaml((src.path / 'metadata.yaml').read_text())
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
-        msg = f'cannot read {src.path / "metadata.yaml"}: {err}'
-        raise BagError(msg) from err
-    meta = meta if isinstance(meta, dict) else {}
-    bagfile = meta.get('rosbag2_bagfile_information')
-    bagfile = bagfile if isinstance(bagfile, dict) else {}
-    storage = str(bagfile.get('storage_identifier', '?'))
-    custom_raw = bagfile.get('custom_data')
-    custom = {str(k): str(v) for k, v in custom_raw.items()} if isinstance(custom_raw, dict) else {}
+    storage, custom = _read_metadata(src.path)
     undecodable: list[UndecodableRecord] = []
     with src as reader:
         first: dict[str, int] = {}

@@ -245,8 +245,8 @@ class BagRecorder:
             for key, value in self._custom_data.items():
                 writer.set_custom_data(key, value)
             try:
-                writer.open()
-            except (WriterError, OSError) as err:
+                writer.open()  # custom data stored at once: a killed recording keeps it
+            except (WriterError, OSError, sqlite3.Error) as err:
                 msg = f'cannot create bag {self._path}: {err}'
                 raise BagError(msg) from err
             self._writer = writer

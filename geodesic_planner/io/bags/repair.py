@@ -3,12 +3,19 @@
 The storage file is scanned for every complete record and rewritten with a full index and
 ``metadata.yaml``: MCAP with the ``mcap`` package's stream reader (schemas, channels, messages of
 every intact chunk; a truncated record ends the scan, a corrupt chunk is skipped), SQLite through
-its committed rows (read in order up to the first unreadable page; rows with values of the
-wrong kind skipped).
+its committed rows (:mod:`.salvage`: damaged pages skipped, damaged table definitions rebuilt).
+
+What the metadata held is kept: the repaired bag gets the custom data of the old
+``metadata.yaml`` when there is one, else of the storage file's own copy of the metadata, else
+of the copy the recorder stored when it opened (see :mod:`.storage`), and the old ``ros_distro``;
+the storage file keeps its name. Everything else in ``metadata.yaml`` describes the messages and
+is computed anew from them.
 
 A storage file that is not a bag at all (garbage bytes, a truncated SQLite header, a missing
-table) gives a :class:`BagError` naming the cause, never another exception; topics whose
-message definition is unusable are left out with their messages, and the report says so.
+table) gives a :class:`BagError` naming the cause, never another exception. Damage that cost
+data (corrupt chunks, unreadable rows or pages, topics left out for want of a usable message
+definition, damaged names) is listed in :attr:`RepairReport.damage`; what could be read is
+written all the same.
 """
 from __future__ import annotations
 
@@ -24,19 +31,21 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, BinaryIO, cast
 
 import lz4.frame
+import yaml
 import zstandard
 from mcap.exceptions import EndOfFile, McapError
-from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, Schema
+from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
-from rosbags.interfaces import Qos
 from rosbags.rosbag2 import Writer, WriterError
 from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
 
 from ...core.errors import BagError
-from .cdr import make_typestore, parse_qos_text
+from .cdr import load_yaml, make_typestore, parse_qos_text
 from .reader import OpenBag, bag_info
 from .reader import messages as messages_of
 from .recorder import PLUGINS
+from .salvage import Recovered, Salvage, metadata_fields, scan_sqlite
+from .storage import CUSTOM_DATA_RECORD
 
 if TYPE_CHECKING:
     from rosbags.interfaces import Connection
@@ -58,6 +67,9 @@ class RepairReport:
         messages: messages in the repaired bag, per topic.
         damaged_file: where the original storage file was kept (None if untouched).
         note: what was found.
+        damage: what was damaged in the storage file and what that cost, one line each (empty: a
+            recording that was only interrupted, nothing lost but what never reached the file).
+        custom_data: the repaired bag's custom data.
     """
 
     path: Path
@@ -66,16 +78,8 @@ class RepairReport:
     messages: dict[str, int]
     damaged_file: Path | None
     note: str
-
-
-@dataclass
-class _Recovered:
-    topic: str
-    msgtype: str
-    msgdef: str
-    msgdef_format: str  # 'ros2msg' | 'ros2idl' | ''
-    qos: list[Qos]
-    digest: str = ''
+    damage: tuple[str, ...] = ()
+    custom_data: dict[str, str] = field(default_factory=dict)
 
 
 class _ExactReader:
@@ -131,11 +135,13 @@ _DAMAGE = (McapError, struct.error, UnicodeDecodeError, ValueError, KeyError, Ov
 def _scan_records(records: Iterator[McapRecord], found: _Found, *, nested: bool) -> None:
     try:
         for record in records:
-            if isinstance(record, Schema):
+            if isinstance(record, Metadata):
+                _scan_metadata(record, found)
+            elif isinstance(record, Schema):
                 found.schemas[record.id] = (record.name, record.encoding, record.data.decode('utf-8'))
             elif isinstance(record, Channel):
                 name, enc, text = found.schemas.get(record.schema_id, ('', '', ''))
-                found.channels[record.id] = _Recovered(
+                found.channels[record.id] = Recovered(
                     record.topic, name, text, enc, parse_qos_text(record.metadata.get('offered_qos_profiles')),
                     record.metadata.get('topic_type_hash', ''))
             elif isinstance(record, Message):
@@ -162,15 +168,26 @@ def _until_end(records: Iterator[McapRecord]) -> Iterator[McapRecord]:
         return
 
 
+def _scan_metadata(record: Metadata, found: _Found) -> None:
+    """The recorder's early custom data, or rosbag2's metadata record (written at close: it wins)."""
+    if record.name == CUSTOM_DATA_RECORD:
+        found.early_custom_data.update({str(k): str(v) for k, v in record.metadata.items()})
+    elif record.name == 'rosbag2':
+        try:
+            custom, distro = metadata_fields(load_yaml(record.metadata.get('serialized_metadata', '')))
+        except yaml.YAMLError:
+            return
+        found.custom_data.update(custom)
+        found.ros_distro = distro
+
+
 @dataclass
-class _Found:
+class _Found(Salvage):
     schemas: dict[int, tuple[str, str, str]] = field(default_factory=dict)
-    channels: dict[int, _Recovered] = field(default_factory=dict)
-    messages: list[tuple[int, int, bytes]] = field(default_factory=list)
-    skipped: int = 0
+    early_custom_data: dict[str, str] = field(default_factory=dict)
 
 
-def _scan_mcap(path: Path) -> tuple[dict[int, _Recovered], list[tuple[int, int, bytes]], int]:
+def _scan_mcap(path: Path) -> Salvage:
     """Tolerant MCAP scan with mcap's stream reader: channels, messages, corrupt chunks skipped."""
     found = _Found()
     with path.open('rb') as fh:
@@ -180,70 +197,10 @@ def _scan_mcap(path: Path) -> tuple[dict[int, _Recovered], list[tuple[int, int, 
         reader = StreamReader(_exact_reader(fh), skip_magic=True, emit_chunks=True,
                               record_size_limit=path.stat().st_size)
         _scan_records(reader.records, found, nested=False)
-    return found.channels, found.messages, found.skipped
-
-
-_UINT64 = 1 << 64
-
-
-def _sqlite_rows(conn: sqlite3.Connection, query: str) -> tuple[list[Any], bool]:
-    """Rows of ``query`` read one by one up to the first error; (rows, True if it stopped early)."""
-    rows: list[Any] = []
-    try:
-        for row in conn.execute(query):
-            rows.append(row)
-    except sqlite3.Error:
-        return rows, True
-    return rows, False
-
-
-def _text(value: object) -> str:
-    if isinstance(value, bytes):
-        return value.decode('utf-8', 'replace')
-    return '' if value is None else str(value)
-
-
-def _scan_sqlite(path: Path) -> tuple[dict[int, _Recovered], list[tuple[int, int, bytes]], int]:
-    """Committed topics, definitions and messages of a SQLite storage file.
-
-    Returns:
-        (channels by topic id, messages (topic id, ns, bytes), rows skipped or unread).
-
-    Raises:
-        BagError: not a SQLite database, or no readable ``topics`` / ``messages`` table.
-    """
-    try:
-        conn = sqlite3.connect(f'file:{path}', uri=True)  # rolls back an interrupted transaction
-    except sqlite3.Error as err:
-        msg = f'cannot read SQLite storage {path}: {err}'
-        raise BagError(msg) from err
-    try:
-        try:
-            cur = conn.execute('SELECT id, name, type, offered_qos_profiles FROM topics')
-            topics = cur.fetchall()
-            hashes = dict(_sqlite_rows(conn, 'SELECT id, type_description_hash FROM topics')[0])
-            conn.execute('SELECT topic_id, timestamp, data FROM messages LIMIT 0').fetchall()
-        except sqlite3.Error as err:
-            msg = f'cannot read SQLite storage {path}: {err} (not a rosbag2 database, or damaged)'
-            raise BagError(msg) from err
-        def_rows, _ = _sqlite_rows(
-            conn, 'SELECT topic_type, encoding, encoded_message_definition FROM message_definitions')
-        rows, stopped = _sqlite_rows(conn, 'SELECT topic_id, timestamp, data FROM messages ORDER BY id')
-        if stopped and not rows:  # the ordered scan needs pages the plain one may not
-            rows, stopped = _sqlite_rows(conn, 'SELECT topic_id, timestamp, data FROM messages')
-    finally:
-        conn.close()
-    defs = {_text(ttype): (_text(enc), _text(text)) for ttype, enc, text in def_rows}
-    channels = {}
-    for tid, name, ttype, qos in topics:
-        if not isinstance(tid, int) or not name or not ttype:
-            continue
-        enc, text = defs.get(_text(ttype), ('', ''))
-        channels[tid] = _Recovered(_text(name), _text(ttype), text, enc, parse_qos_text(_text(qos)),
-                                   _text(hashes.get(tid)))
-    messages = [(a, b, bytes(c)) for a, b, c in rows
-                if isinstance(a, int) and isinstance(b, int) and 0 <= b < _UINT64 and isinstance(c, bytes)]
-    return channels, messages, len(rows) - len(messages) + int(stopped)
+    if found.skipped:
+        found.damage.append(f'{found.skipped} corrupt chunk(s) skipped with their messages')
+    found.custom_data = {**found.early_custom_data, **found.custom_data}
+    return found
 
 
 def _bag_is_readable(path: Path) -> bool:
@@ -284,22 +241,28 @@ def repair(path: str | os.PathLike[str]) -> RepairReport:
     if (bag / 'metadata.yaml').exists() and _bag_is_readable(bag):
         info = bag_info(bag)
         return RepairReport(bag, False, storage, {t.name: t.count for t in info.topics}, None,
-                            'bag is readable: nothing to repair')
+                            'bag is readable: nothing to repair', custom_data=info.custom_data)
 
-    channels, messages, skipped = _scan_mcap(src) if storage == 'mcap' else _scan_sqlite(src)
+    old_meta = _old_metadata(bag / 'metadata.yaml')
     tmp_parent = bag.parent / f'.{bag.name}.repair-{os.getpid()}'
     if tmp_parent.exists():
         shutil.rmtree(tmp_parent)
-    tmp_bag = tmp_parent / bag.name
+    tmp_bag = tmp_parent / src.stem  # the writer names the storage file after the directory
     counts: dict[str, int] = {}
     try:
         tmp_parent.mkdir()
+        found = _scan_mcap(src) if storage == 'mcap' else scan_sqlite(src, tmp_parent)
+        custom, distro = metadata_fields(old_meta)
+        custom = {**found.custom_data, **custom}
+        distro = distro or found.ros_distro
         writer = Writer(tmp_bag, version=9, storage_plugin=PLUGINS[storage])
+        for key, value in custom.items():
+            writer.set_custom_data(key, value)
         writer.open()
         conns: dict[int, Connection] = {}
         store = make_typestore()
         left_out: list[str] = []
-        for cid, ch in channels.items():
+        for cid, ch in found.channels.items():
             conn = _add_connection(writer, ch, store)
             if conn is None:
                 left_out.append(f'{ch.topic} ({ch.msgtype})')
@@ -307,7 +270,7 @@ def repair(path: str | os.PathLike[str]) -> RepairReport:
             conns[cid] = conn
             counts.setdefault(ch.topic, 0)
         lost = 0
-        for cid, stamp, data in messages:
+        for cid, stamp, data in found.messages:
             conn = conns.get(cid)
             if conn is None:
                 lost += 1
@@ -315,6 +278,8 @@ def repair(path: str | os.PathLike[str]) -> RepairReport:
             writer.write(conn, stamp, data)
             counts[conn.topic] += 1
         writer.close()
+        if distro and distro != 'rosbags':
+            _set_ros_distro(tmp_bag / 'metadata.yaml', distro)
         new_file = next(p for p in tmp_bag.iterdir() if p.suffix == src.suffix)
         damaged = src.with_name(src.name + '.damaged')
         k = 2
@@ -326,23 +291,43 @@ def repair(path: str | os.PathLike[str]) -> RepairReport:
             (bag / 'metadata.yaml').replace(bag / 'metadata.yaml.damaged')
         new_file.replace(bag / new_file.name)
         (tmp_bag / 'metadata.yaml').replace(bag / 'metadata.yaml')
-    except (WriterError, OSError, sqlite3.Error, struct.error) as err:
+    except (WriterError, OSError, sqlite3.Error, struct.error, yaml.YAMLError) as err:
         msg = f'cannot repair {bag}: {err}'
         raise BagError(msg) from err
     finally:
         shutil.rmtree(tmp_parent, ignore_errors=True)
+    damage = list(found.damage)
+    if left_out:
+        damage.append(f'left out for want of a usable message definition: {", ".join(left_out)}')
+    if lost:
+        damage.append(f'{lost} messages without a usable channel dropped')
     note = f'recovered {sum(counts.values())} messages on {len(counts)} topics'
-    if skipped:
+    if found.skipped:
         what = 'corrupt chunks' if storage == 'mcap' else 'unreadable rows'
-        note += f'; {skipped} {what} skipped'
+        note += f'; {found.skipped} {what} skipped'
     if left_out:
         note += f'; left out for want of a usable message definition: {", ".join(left_out)}'
     if lost:
         note += f'; {lost} messages without a usable channel dropped'
-    return RepairReport(bag, True, storage, counts, damaged, note)
+    return RepairReport(bag, True, storage, counts, damaged, note, tuple(damage), custom)
 
 
-def _add_connection(writer: Writer, ch: _Recovered, store: Any) -> Connection | None:  # noqa: ANN401 rosbags Typestore
+def _old_metadata(path: Path) -> object:
+    """The parsed ``metadata.yaml`` of the bag being repaired; None when absent or unreadable."""
+    try:
+        return load_yaml(path.read_bytes())
+    except (OSError, yaml.YAMLError):
+        return None
+
+
+def _set_ros_distro(path: Path, distro: str) -> None:
+    """Put the old bag's ``ros_distro`` into the repaired bag's ``metadata.yaml``."""
+    meta = load_yaml(path.read_text())
+    meta['rosbag2_bagfile_information']['ros_distro'] = distro
+    path.write_text(yaml.safe_dump(meta, default_flow_style=False, sort_keys=False))
+
+
+def _add_connection(writer: Writer, ch: Recovered, store: Any) -> Connection | None:  # noqa: ANN401 rosbags Typestore
     """The repaired bag's connection for a recovered channel; None when its type is unusable."""
     kwargs: dict[str, Any] = {}
     if ch.msgdef and ch.msgdef_format in ('ros2msg', ''):

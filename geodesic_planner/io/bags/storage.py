@@ -13,6 +13,12 @@ implement that protocol plus :meth:`flush`, so the recorder uses only public API
 
 rosbags still builds the connections, type hashes and ``metadata.yaml``.
 
+Custom data survives a kill. ``metadata.yaml`` and the storage's own copy of the metadata are
+written at ``close()``; :class:`FlushableWriter` also stores the bag's ``custom_data`` when it opens
+(MCAP: a metadata record named :data:`CUSTOM_DATA_RECORD`; SQLite: the table of the same name,
+``key``/``value`` rows), so that :func:`~geodesic_planner.io.bags.repair.repair` gives it back to
+a recording that never closed. rosbag2 and rosbags ignore both.
+
 Write failures (a full disk). Both storages touch the file only in ``flush()`` and ``close()``
 (SQLite also when its page cache spills during an insert). A failed flush raises and keeps what
 it could not write when it can: the MCAP bytes stay in memory and the file is cut back to its last
@@ -38,7 +44,10 @@ if TYPE_CHECKING:
 
     from rosbags.interfaces import Connection
 
-__all__ = ['FlushableWriter', 'McapStorage', 'Sqlite3Storage']
+__all__ = ['CUSTOM_DATA_RECORD', 'FlushableWriter', 'McapStorage', 'Sqlite3Storage']
+
+#: MCAP metadata record / SQLite table holding the bag's custom data from the start of a recording.
+CUSTOM_DATA_RECORD = 'geodesic_planner_custom_data'
 
 
 def _schema_encoding(connection: Connection) -> str:
@@ -144,6 +153,10 @@ class McapStorage:
         self._mcap.add_message(self._channels[connection.id], log_time=timestamp, data=bytes(data),
                                publish_time=timestamp)
 
+    def write_custom_data(self, custom_data: Mapping[str, str]) -> None:
+        """Store the bag's custom data now (a metadata record, in the file at the next flush)."""
+        self._mcap.add_metadata(CUSTOM_DATA_RECORD, dict(custom_data))
+
     def flush(self) -> None:
         """Close the pending chunk (if it holds messages) and write everything to the file.
 
@@ -223,6 +236,11 @@ class Sqlite3Storage:
         self._db.execute('INSERT INTO messages (topic_id, timestamp, data) VALUES (?, ?, ?)',
                          (connection.id, timestamp, bytes(data)))
 
+    def write_custom_data(self, custom_data: Mapping[str, str]) -> None:
+        """Store the bag's custom data now (table ``CUSTOM_DATA_RECORD``, committed at the next flush)."""
+        self._db.execute(f'CREATE TABLE {CUSTOM_DATA_RECORD}(key TEXT PRIMARY KEY, value TEXT NOT NULL)')
+        self._db.executemany(f'INSERT INTO {CUSTOM_DATA_RECORD} VALUES (?, ?)', list(custom_data.items()))
+
     def flush(self) -> None:
         """Commit the open transaction (committed rows survive a process kill).
 
@@ -256,6 +274,19 @@ class FlushableWriter(Writer):
         StoragePlugin.MCAP: McapStorage,
         StoragePlugin.SQLITE3: Sqlite3Storage,
     }
+
+    def open(self) -> None:
+        """Open for writing (see rosbags' ``Writer.open``); the custom data set so far is stored at once.
+
+        Raises:
+            WriterError: the bag directory exists.
+            OSError, sqlite3.Error: the storage file cannot be written.
+        """
+        super().open()
+        storage = self.storage
+        if self.custom_data and isinstance(storage, (McapStorage, Sqlite3Storage)):
+            storage.write_custom_data(self.custom_data)
+            storage.flush()
 
     def flush(self) -> None:
         """Push everything written so far to the storage file (no-op before open / after close)."""
