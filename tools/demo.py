@@ -19,12 +19,15 @@ namespace). Steps:
    twice for a 5-pose sequence (start, 3 via poses, goal; :func:`via_sequence`), with
    ``blend_radius`` 0 (rest at every via pose) and > 0 (:func:`via_blend_radius`: pass them
    without stopping);
-7. collisions (:mod:`tools.demo_collision`): a box across the start -> goal line is refused with
-   the pair named, moved aside (same service) and planned; then stop the planner;
+7. collisions (:mod:`tools.demo_collision`): a box across the motion (placed and sized from the
+   robot's geometry, checked with the library first) is refused with the pair named, moved aside
+   (same service) and planned; then stop the planner;
 8. the motion types (:mod:`tools.motions`, library only): ``DIR/sequence.png`` and ``DIR/ptp.png``;
 9. read both trajectories back from the bag (:func:`geodesic_planner.io.bags.read_trajectories`),
-   print a summary and write ``DIR/summary.json``, ``DIR/trajectory.png`` and
-   ``DIR/via_blend.png`` (tool path and tool speed of both via plans) and ``DIR/collision.png``.
+   print a summary and write ``DIR/summary.json`` (poses as 4x4 matrices and as position +
+   quaternion), ``DIR/trajectory.png`` (the joints with their limits, the tool path against the
+   straight line), ``DIR/via_blend.png`` (tool path and tool speed of both via plans) and
+   ``DIR/collision.png``.
 
 A node that dies or a wait that times out prints the node's log tail and exits with 1.
 
@@ -50,12 +53,13 @@ import numpy as np
 from geodesic_planner.core.collision import DEFAULT_PADDING
 from geodesic_planner.core.errors import GeodesicPlannerError
 from geodesic_planner.core.kinematics import Chain
+from geodesic_planner.core.transforms import transform_to_pose
 from tools import netns
 from tools.demo_collision import collision_summary, run_collision_step, say_summary
 from tools.motions import motions_demo
 from tools.process import NodeProcess, ToolError, popen_node, wait_until
 
-__all__ = ['DemoError', 'main', 'paper_poses', 'run_demo', 'segment_deviation',
+__all__ = ['DemoError', 'main', 'paper_poses', 'pose_json', 'run_demo', 'segment_deviation',
            'tool_speed', 'trajectory_summary', 'via_blend_radius', 'via_blend_summary', 'via_sequence']
 
 PLAN_SERVICE = '/geodesic_planner/plan'
@@ -159,6 +163,13 @@ def via_blend_summary(t: np.ndarray, q: np.ndarray, dq: np.ndarray, robot: Chain
         'tool_speed_at_via_m_s': [float(v) for v in speed[near]],
         'peak_tool_speed_m_s': float(speed.max()),
     }
+
+
+def pose_json(T: np.ndarray) -> dict[str, list[float]]:
+    """A 4x4 pose (base frame, m) as summary.json gives it besides the matrix: ``position`` (m) and
+    ``quaternion_xyzw`` (x, y, z, w; w >= 0, as geometry_msgs/Pose orders it)."""
+    position, quaternion = transform_to_pose(T)
+    return {'position': [float(v) for v in position], 'quaternion_xyzw': [float(v) for v in quaternion]}
 
 
 def segment_deviation(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -411,6 +422,7 @@ def _via_blend(output: Path, robot: Any, poses: list[np.ndarray], radius: float,
     return {
         'service': PLAN_TRAJECTORY_SERVICE,
         'poses': [T.tolist() for T in poses],
+        'poses_position_quaternion': [pose_json(T) for T in poses],
         'blend_radius_m': radius,
         **parts,
         'time_saved_s': parts['stopping']['duration_s'] - parts['blended']['duration_s'],
@@ -449,6 +461,8 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
         'joint_names': list(robot.joint_names),
         'start_pose': start_T.tolist(),
         'goal_pose': goal_T.tolist(),
+        'start': pose_json(start_T),
+        'goal': pose_json(goal_T),
         'velocity_scaling': VELOCITY_SCALING,
         'sample_period_s': SAMPLE_PERIOD,
         'service_latency_ms': latency_ms,
@@ -457,8 +471,9 @@ def _summarise(bag_dir: Path, output: Path, robot: Any, start_T: np.ndarray,  # 
         **extra,
     }
     (output / 'summary.json').write_text(json.dumps(summary, indent=1) + '\n')
-    plot_trajectories(output / 'trajectory.png', columns,
-                      title=f'{robot.name}: geodesic trajectory, planned and processed (from the bag)')
+    plot_trajectories(output / 'trajectory.png', columns, robot=robot,
+                      title=f'{robot.name}: geodesic trajectory, planned and processed (from the bag), '
+                            'with the joint limits and the tool path')
 
     p, r = parts['planned'], parts['processed']
     say('')
@@ -490,8 +505,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     'bag, print a summary and write summary.json and trajectory.png.')
     parser.add_argument('--output', default='out/demo', help='output directory (default out/demo)')
     parser.add_argument('--robot', default='planar_3r',
-                        help='robot preset (default planar_3r: the paper\'s poses; others move '
-                             'from home to home + 0.3 on every joint)')
+                        help='robot preset: planar_3r (default: the paper\'s poses), rrpp, ur5e or panda '
+                             '(from home to home + 0.3 rad or m on every joint; the collision step\'s box '
+                             'is placed and sized from the robot\'s geometry)')
     parser.add_argument('--timeout', type=float, default=60.0,
                         help='deadline of each wait, s (default 60)')
     args = parser.parse_args(argv)

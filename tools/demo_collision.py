@@ -307,7 +307,9 @@ def collision_summary(output: Path, robot: Chain, start: np.ndarray, goal: np.nd
     n_min = int(np.argmin(clearance['aside']))
     pair = pairs['aside'][n_min]
     a, b = _nearest_points(model, q[n_min], step['aside'], step['edge_m'], pair)
-    closest = Closest(float(clearance['aside'][n_min]), pair, a, b, float(s[n_min]))
+    reported = float(step['planned']['min_clearance_m'])      # the node's, where the samples come closest
+    closest = Closest(reported if math.isfinite(reported) else float(clearance['aside'][n_min]), pair, a, b,
+                      float(s[n_min]))
     views = [ArmView('start', _solids(model, q[0]), 'C2'), ArmView('goal', _solids(model, q[-1]), 'C0')]
     if math.isfinite(refused['fraction']):
         n_ref = int(np.argmin(np.abs(s - refused['fraction'])))
@@ -331,7 +333,7 @@ def collision_summary(output: Path, robot: Chain, start: np.ndarray, goal: np.nd
         'padding_m': padding,
         'first_sample_within_padding_fraction': first_contact,
         'min_clearance_across_samples_m': float(clearance['across'].min()),
-        'min_clearance_aside_samples_m': closest.value,
+        'min_clearance_aside_samples_m': float(clearance['aside'][n_min]),
         'closest_pair_aside_samples': list(pair),
         'closest_fraction_aside_samples': closest.fraction,
     }

@@ -120,7 +120,7 @@ def _ptp(output: Path) -> dict[str, Any]:
         integral = float(np.sum(0.5 * (energy[1:] + energy[:-1]) * np.diff(t)))
         s = np.linspace(0.0, 1.0, 201)
         runs.append((f'{name}: action {action(path, mass):.3f}, {traj.duration:.3f} s, '
-                     f'energy integral {integral:.3f} J s', s, path.evaluate(s, 0)[0], energy))
+                     f'energy integral {integral:.3f} J s', s, path.evaluate(s, 0)[0], t, energy))
         out[name] = {'action': action(path, mass), 'duration_s': float(traj.duration),
                      'energy_integral_J_s': integral, 'plan_ms': plan_ms}
     plot_ptp_comparison(output / 'ptp.png', runs, robot.joint_names,

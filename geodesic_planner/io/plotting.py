@@ -5,6 +5,7 @@ matplotlib is imported lazily (only when a figure is drawn) and used without pyp
 """
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Protocol
@@ -14,6 +15,8 @@ import numpy as np
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+
+    from ..core.kinematics import Chain
 
 #: Line styles per method (geodesic solid, polynomial dashed), as in the paper's legends.
 STYLES = {'geodesic': {'ls': '-', 'lw': 1.6}, 'polynomial': {'ls': '--', 'lw': 1.2},
@@ -359,7 +362,7 @@ class JointSeries(Protocol):
 
 
 def plot_trajectories(path: str | os.PathLike[str], columns: Sequence[tuple[str, JointSeries | None]], *,
-                      title: str = '') -> str:
+                      title: str = '', robot: Chain | None = None) -> str:
     """One PNG of joint trajectories side by side: rows position, velocity, acceleration vs time.
 
     Args:
@@ -368,13 +371,24 @@ def plot_trajectories(path: str | os.PathLike[str], columns: Sequence[tuple[str,
             t in s, positions (N, dof) in rad or m, velocities /s, accelerations /s² (None: not
             in the message, shown as a note).
         title: figure title.
+        robot: the model of the joints (optional). With it, every panel shows the joints' limits
+            (position, velocity, acceleration; dashed, ``gid`` ``'limit'``; a limit far off the
+            data's scale is named in the panel instead of squeezing the curves), and a last column
+            shows the tool path ``robot.fk(positions)`` (``gid`` ``'tool path'``) against the straight
+            line from its first to its last point: top and side views (the top view alone, taller,
+            for a planar arm) and the distance from the line against time.
 
     Returns:
         ``path`` as a string.
     """
     ncols = max(len(columns), 1)
-    fig = _figure((6.0 * ncols + 1.5, 8.0))
-    axes = fig.subplots(3, ncols, sharey='row', squeeze=False)
+    extra = 1 if robot is not None else 0
+    fig = _figure((6.0 * ncols + 1.5 + 5.0 * extra, 8.0))
+    grid = fig.add_gridspec(3, ncols + extra, width_ratios=[1.0] * ncols + [0.85] * extra)
+    axes = np.empty((3, ncols), dtype=object)
+    for row in range(3):
+        for col in range(ncols):
+            axes[row, col] = fig.add_subplot(grid[row, col], sharey=axes[row, 0] if col else None)
     labels = ('position (rad or m)', 'velocity (rad/s or m/s)', r'acceleration (rad/s$^2$ or m/s$^2$)')
     colors = [f'C{k}' for k in range(10)]
     legend_done = False
@@ -390,19 +404,128 @@ def plot_trajectories(path: str | os.PathLike[str], columns: Sequence[tuple[str,
                 continue
             for j, name in enumerate(rec.joint_names):
                 ax.plot(rec.t, values[:, j], color=colors[j % len(colors)], label=name, **style)
+        if robot is not None:
+            _limit_lines(axes[:, col], rec, robot, colors)
         if not legend_done:
             handles, names = axes[0, col].get_legend_handles_labels()
             axes[0, -1].legend(handles, names, fontsize=7, loc='upper left', bbox_to_anchor=(1.02, 1.0),
                                borderaxespad=0.0)
             legend_done = True
+    if robot is not None:
+        for row in range(3):
+            _fit_limits(axes[row])
+        _tool_column(fig, grid, ncols, columns, robot)
     for row, label in enumerate(labels):
         axes[row, 0].set_ylabel(label)
         for col in range(ncols):
             axes[row, col].grid(True, alpha=0.3)
+            if col:
+                axes[row, col].tick_params(labelleft=False)
     for col in range(ncols):
         axes[-1, col].set_xlabel('time from start (s)')
     fig.suptitle(title, fontsize=10)
     return save_png(fig, path)
+
+
+def _joint_order(rec: JointSeries, robot: Chain) -> list[int]:
+    """The robot's index of each of the record's joints."""
+    from ..core.errors import RequestError
+    missing = [n for n in rec.joint_names if n not in robot.joint_names]
+    if missing:
+        raise RequestError(f'plot: joints {missing} are not joints of {robot.name!r} ({robot.joint_names})')
+    return [robot.joint_names.index(n) for n in rec.joint_names]
+
+
+def _limit_lines(axes: np.ndarray, rec: JointSeries, robot: Chain, colors: Sequence[str]) -> None:
+    """Dashed lines at the joints' limits in the three rows (one line per distinct value: black when
+    several joints share it, else the joint's colour)."""
+    idx = _joint_order(rec, robot)
+    rows = ((robot.lower, robot.upper), (-robot.max_velocity, robot.max_velocity),
+            (-robot.max_acceleration, robot.max_acceleration))
+    for ax, (lo, hi) in zip(axes, rows):
+        values: dict[float, list[int]] = {}
+        for j, k in enumerate(idx):
+            for v in (float(lo[k]), float(hi[k])):
+                if math.isfinite(v):
+                    values.setdefault(v, []).append(j)
+        for n, (v, joints) in enumerate(sorted(values.items())):
+            ax.axhline(v, color='k' if len(joints) > 1 else colors[joints[0] % len(colors)], ls='--', lw=0.9,
+                       alpha=0.8, gid='limit', label='limits (dashed)' if n == 0 else None)
+
+
+def _fit_limits(row: Sequence[Axes]) -> None:
+    """The row's y range: the data's, widened to its limit lines when they lie within one data span of
+    it; the limits beyond that are named in the panel."""
+    data = [np.asarray(line.get_ydata(), dtype=float) for ax in row for line in ax.get_lines()
+            if line.get_gid() != 'limit']
+    finite = np.concatenate([d[np.isfinite(d)] for d in data]) if data else np.zeros(0)
+    if finite.size == 0:
+        return
+    lo, hi = float(finite.min()), float(finite.max())
+    span = max(hi - lo, 1e-9)
+    limits = sorted({float(np.asarray(line.get_ydata())[0]) for ax in row for line in ax.get_lines()
+                     if line.get_gid() == 'limit'})
+    near = [v for v in limits if lo - span <= v <= hi + span]
+    far = [v for v in limits if v not in near]
+    lo, hi = min([lo, *near]), max([hi, *near])
+    pad = 0.06 * max(hi - lo, 1e-9)
+    row[0].set_ylim(lo - pad, hi + pad)
+    if far:
+        for ax in row:
+            ax.text(0.01, 0.98, 'joint limits off the scale: ' + ', '.join(f'{v:.4g}' for v in far),
+                    transform=ax.transAxes, ha='left', va='top', fontsize=7, color='0.3')
+
+
+def _tool_column(fig: Figure, grid: Any, col: int, columns: Sequence[tuple[str, JointSeries | None]],  # noqa: ANN401
+                 robot: Chain) -> None:
+    """The tool path of each trajectory (fk of its positions) in views of the base frame, against the
+    straight line between its ends, and its distance from that line against time."""
+    from ..core.transforms import segment_distance
+    from ..core.errors import RequestError
+    paths = []
+    for heading, rec in columns:
+        if rec is None:
+            continue
+        idx = _joint_order(rec, robot)
+        if sorted(idx) != list(range(robot.dof)):
+            raise RequestError(f'plot: {heading} has joints {rec.joint_names}, not every joint of {robot.name!r}')
+        paths.append((heading, rec, robot.fk(rec.positions[:, np.argsort(idx)])[:, :3, 3]))
+    if not paths:
+        return
+    first = paths[0][2]
+    a, b = first[0], first[-1]
+    planar = all(np.ptp(p[:, 2]) < 1e-9 for _, _, p in paths)
+    views = [((0, 1), 'tool path, top view (xy plane, base frame)', grid[0:2, col] if planar else grid[0, col])]
+    if not planar:
+        views.append(((0, 2), 'tool path, side view (xz plane, base frame)', grid[1, col]))
+    for (i, j), name, cell in views:
+        ax = fig.add_subplot(cell)
+        ax.plot([a[i], b[i]], [a[j], b[j]], color='k', ls=':', lw=1.0, label='straight line start -> goal')
+        for k, (heading, _rec, p) in enumerate(paths):
+            ax.plot(p[:, i], p[:, j], color=f'C{k}', ls='-' if k == 0 else '--', lw=2.2 - 0.8 * k,
+                    gid='tool path', label=f'tool, {heading}')
+        for end, word in ((a, 'start'), (b, 'goal')):
+            ax.plot(end[i], end[j], 'ko', ms=4)
+            ax.annotate(word, (end[i], end[j]), xytext=(5, 5), textcoords='offset points', fontsize=8)
+        ax.set_aspect('equal', adjustable='datalim')
+        ax.set_xlabel(f'tool ${"xyz"[i]}$ (m)', fontsize=8)
+        ax.set_ylabel(f'tool ${"xyz"[j]}$ (m)', fontsize=8)
+        ax.set_title(name, fontsize=9)
+        ax.grid(True, alpha=0.3)
+        ax.tick_params(labelsize=7)
+        ax.legend(fontsize=7, loc='best')
+    ax = fig.add_subplot(grid[2, col])
+    worst = 0.0
+    for k, (heading, rec, p) in enumerate(paths):
+        dev = segment_distance(p, a, b)
+        worst = max(worst, float(dev.max()))
+        ax.plot(rec.t, dev, color=f'C{k}', ls='-' if k == 0 else '--', label=heading)
+    ax.ticklabel_format(axis='y', style='sci', scilimits=(-2, 3))
+    ax.set_xlabel('time from start (s)')
+    ax.set_ylabel('distance (m)')
+    ax.set_title(f'tool distance from the straight line (largest {worst:.2g} m)', fontsize=9)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc='best')
 
 
 def plot_via_blend(path: str | os.PathLike[str],

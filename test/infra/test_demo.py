@@ -246,3 +246,13 @@ def test_demo_end_to_end_with_another_robot(tmp_path: Path) -> None:
     assert col['planned']['min_clearance_m'] > col['padding_m']
     for name in ('trajectory.png', 'via_blend.png', 'collision.png', 'sequence.png', 'ptp.png'):
         assert (out / name).read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_demo_pose_json_position_and_quaternion() -> None:
+    from tools.demo import paper_poses, pose_json
+
+    start, _ = paper_poses()                      # yaw 30 deg about z at (2.5, 1.5, 0)
+    got = pose_json(start)
+    assert got['position'] == [2.5, 1.5, 0.0]
+    np.testing.assert_allclose(got['quaternion_xyzw'], [0.0, 0.0, math.sin(math.radians(15.0)),
+                                                        math.cos(math.radians(15.0))], atol=1e-15)
