@@ -8,9 +8,17 @@ belong to the planner's configuration (:func:`geodesic_planner.ros.planning.buil
 
 Rejection reasons read ``<name>: <problem>``, e.g. ``velocity_scaling: must be in (0, 1], got
 1.5``.
+
+A name the node does not have (``-p colision_check:=false``, a typo in a ``--params-file``) is
+never silently ignored: both nodes are :class:`SchemaNode` s, which know the names of their
+overrides, and :func:`check_unknown` warns about each override the node has no parameter for,
+naming the closest one ("unknown parameter 'colision_check' (did you mean 'collision_check'?)"),
+and refuses an unknown name at run time with the same reason (the ``set_parameters`` result, or
+:class:`UnknownParameterError` from ``node.set_parameters``).
 """
 from __future__ import annotations
 
+import difflib
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -18,8 +26,11 @@ from typing import Any
 
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterNotDeclaredException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.time_source import USE_SIM_TIME_NAME
+from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
 from ..io.storages import STORAGES
 from ..timing.resample import MAX_POINTS
@@ -370,3 +381,123 @@ def declare(node: Node, names: Iterable[str], overrides: dict[str, Any] | None =
         spec = SCHEMA[name]
         default = (overrides or {}).get(name, spec.default)
         node.declare_parameter(name, default, spec.descriptor())
+
+
+# --------------------------------------------------------------------------- unknown names
+
+#: Parameters rclpy declares on every node itself.
+RCLPY_PARAMETERS = (USE_SIM_TIME_NAME, START_TYPE_DESCRIPTION_SERVICE_PARAM)
+#: The nodes' names and parameters (to tell a user that a name belongs to the other node).
+NODE_PARAMETERS = {'geodesic_planner': PLANNER_PARAMETERS, 'trajectory_processor': PROCESSOR_PARAMETERS}
+
+
+class SchemaNode(Node):
+    """A node that knows the names of its parameter overrides; the base of both nodes.
+
+    The overrides are what rcl resolved for this node from ``-p``, ``--params-file`` (the node's
+    own sections and ``/**``) and ``parameter_overrides``. rclpy 7.1 has no getter for them; its
+    public way to show them is ``automatically_declare_parameters_from_overrides``, which hands
+    them all to ``declare_parameters`` during ``Node.__init__`` (with ``ignore_override=True``,
+    before any other declaration). Declaring them that way fails on an empty array (type
+    NOT_SET, e.g. ``package_dirs: []`` of config/geodesic_planner.yaml: ValueError), so this
+    class keeps the names of that one call (:attr:`override_names`) and declares none of them:
+    :func:`declare` declares the schema's own with their descriptors and checks, as before, and
+    :func:`check_unknown` warns about the others.
+    """
+
+    def __init__(self, node_name: str, **kwargs: Any) -> None:  # noqa: ANN401 rclpy Node options, passed through
+        self.override_names: tuple[str, ...] = ()
+        self._taking_overrides = True
+        super().__init__(node_name, **{**kwargs, 'automatically_declare_parameters_from_overrides': True,
+                                       'allow_undeclared_parameters': False})
+        self._taking_overrides = False
+
+    def declare_parameters(self, namespace: str, parameters: list[Any],
+                           ignore_override: bool = False) -> list[Parameter]:
+        """``Node.declare_parameters``, except for the automatic declaration of the overrides."""
+        if self._taking_overrides and ignore_override:
+            self._taking_overrides = False
+            self.override_names = tuple(namespace + p[0] for p in parameters)
+            return []
+        return super().declare_parameters(namespace, parameters, ignore_override)
+
+
+class UnknownParameterError(ParameterNotDeclaredException):
+    """A parameter the node does not have; ``str()`` is the reason, with the closest name.
+
+    A ParameterNotDeclaredException (what rclpy raises for an undeclared name), so that rclpy's
+    parameter services answer with ``str(error)`` as the reason.
+    """
+
+    def __init__(self, reason: str, name: str) -> None:
+        super().__init__([name])
+        self.reason = reason
+
+    def __str__(self) -> str:
+        return self.reason
+
+
+def closest(name: str, names: Iterable[str]) -> str | None:
+    """The name of ``names`` most like ``name`` (case and ``-``/``_`` aside), or None if none is close."""
+    def key(n: str) -> str:
+        return n.lower().replace('-', '_')
+    by_key = {key(n): n for n in names}
+    found = difflib.get_close_matches(key(name), list(by_key), n=1, cutoff=0.6)
+    return by_key[found[0]] if found else None
+
+
+def unknown_reason(name: str, names: Sequence[str]) -> str:
+    """Why ``name`` is not a parameter of the node that has ``names``, naming the closest one.
+
+    E.g. ``unknown parameter 'colision_check' (did you mean 'collision_check'?)``.
+    """
+    owners = [node for node, owned in NODE_PARAMETERS.items() if name in owned]
+    if owners:
+        return f'unknown parameter {name!r} (a parameter of the {owners[0]} node, not of this one)'
+    near = closest(name, names)
+    if near is not None:
+        return f'unknown parameter {name!r} (did you mean {near!r}?)'
+    return f'unknown parameter {name!r} (this node has: {", ".join(sorted(names))})'
+
+
+def _shown(value: object) -> str:
+    """A parameter value as a user writes it after ``-p name:=``."""
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, (Sequence, np.ndarray)):
+        return f'[{", ".join(_shown(v) for v in value)}]'
+    return repr(value)
+
+
+def check_unknown(node: SchemaNode, names: Sequence[str]) -> list[str]:
+    """Warn about every override that is not one of ``names``; refuse unknown names from now on.
+
+    Call it once, in the node's ``__init__`` after declaring (before it spins). Each override
+    that is neither in ``names`` nor one of rclpy's own (:data:`RCLPY_PARAMETERS`) gets one
+    warning line: ``<reason>: ignored`` (:func:`unknown_reason`), with the value in force of the
+    parameter it resembles. From then on a ``set_parameters`` call with a name the node has not
+    declared is refused with :func:`unknown_reason` (a pre-set callback: it runs before
+    rclpy's own check, whose reason names no parameter).
+
+    Returns:
+        The warnings logged, in name order.
+    """
+    logged = []
+    for name in sorted(set(node.override_names) - set(names) - set(RCLPY_PARAMETERS)):
+        reason = unknown_reason(name, names) + ': ignored'
+        near = closest(name, names)
+        if 'did you mean' in reason and near is not None and node.has_parameter(near):
+            reason += f'; {near} is {_shown(node.get_parameter(near).value)}'
+        node.get_logger().warning(reason)
+        logged.append(reason)
+
+    def refuse_unknown(changes: list[Parameter]) -> list[Parameter]:
+        for p in changes:
+            if not node.has_parameter(p.name):
+                raise UnknownParameterError(unknown_reason(p.name, names), p.name)
+        return changes
+
+    node.add_pre_set_parameters_callback(refuse_unknown)
+    return logged

@@ -79,7 +79,6 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Header, String
@@ -108,7 +107,7 @@ NODE_NAME = 'geodesic_planner'
 CANCEL_WAIT = 2.0
 
 
-class GeodesicPlannerNode(Node):
+class GeodesicPlannerNode(params.SchemaNode):
     """The ``geodesic_planner`` node (see the module docstring for its interface).
 
     Raises:
@@ -118,6 +117,7 @@ class GeodesicPlannerNode(Node):
     def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 rclpy Node options, passed through
         super().__init__(NODE_NAME, **kwargs)
         params.declare(self, PLANNER_PARAMETERS)
+        params.check_unknown(self, PLANNER_PARAMETERS)   # a mistyped name: a warning, later refused
         self._config_lock = threading.Lock()
         self._topic_description = ''
         self._description_topic = self.resolve_topic_name('/robot_description')

@@ -87,7 +87,6 @@ from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.event_handler import (QoSMessageLostInfo, QoSRequestedIncompatibleQoSInfo, QoSSubscriptionMatchedInfo,
                                   SubscriptionEventCallbacks)
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
@@ -116,7 +115,7 @@ def _qos(reliability: ReliabilityPolicy = ReliabilityPolicy.RELIABLE, *, keep_al
                       durability=DurabilityPolicy.VOLATILE)
 
 
-class TrajectoryProcessorNode(Node):
+class TrajectoryProcessorNode(params.SchemaNode):
     """The ``trajectory_processor`` node (see the module docstring).
 
     Raises:
@@ -130,6 +129,7 @@ class TrajectoryProcessorNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         # record_topics is declared below: its default needs the resolved topic names.
         params.declare(self, [n for n in PROCESSOR_PARAMETERS if n != 'record_topics'])
+        params.check_unknown(self, PROCESSOR_PARAMETERS)   # a mistyped name: a warning, later refused
         self._lock = threading.Lock()
         self.received = 0
         self.published = 0
