@@ -29,11 +29,11 @@ from geodesic_planner.io.bags import (JOINT_STATE, JOINT_TRAJECTORY, STORAGES, B
 GARBAGE = b'\x00\x01\x00\x00\xff\xff\xff\x7fnot a trajectory'
 
 
-def make_bag(path: Path, storage: str, *, garbage: bool = True) -> Path:
+def make_bag(path: Path, storage: str, *, garbage: bool = True, custom_data: dict[str, str] | None = None) -> Path:
     """A bag: input, garbage on the input topic (optional), output, a joint state."""
     ts = make_typestore()
     t, q, dq, ddq = example(np.random.default_rng(3), 4)
-    with BagRecorder(path, storage=storage, typestore=ts,
+    with BagRecorder(path, storage=storage, typestore=ts, custom_data=custom_data,
                      topics={IN: JOINT_TRAJECTORY, OUT: JOINT_TRAJECTORY, JS: JOINT_STATE}) as rec:
         rec.write(IN, 100, to_cdr(trajectory(t, q, dq, ddq), JOINT_TRAJECTORY, ts))
         if garbage:

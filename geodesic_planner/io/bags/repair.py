@@ -203,14 +203,23 @@ def _scan_mcap(path: Path) -> Salvage:
     return found
 
 
-def _bag_is_readable(path: Path) -> bool:
+def _why_unreadable(path: Path) -> str | None:
+    """None when rosbags reads every message ``metadata.yaml`` counts, else why not.
+
+    (rosbags silently skips a SQLite topic row that no longer matches ``metadata.yaml``.)
+    """
+    counts: dict[int, int] = {}
     try:
         with OpenBag(path) as reader:
-            for _ in messages_of(reader, list(reader.connections), path):
-                pass
-    except BagError:
-        return False
-    return True
+            for conn, _, _ in messages_of(reader, list(reader.connections), path):
+                counts[conn.id] = counts.get(conn.id, 0) + 1
+            wrong = [f'{c.topic}: {counts.get(c.id, 0)} of {c.msgcount}' for c in reader.connections
+                     if counts.get(c.id, 0) != c.msgcount]
+    except BagError as err:
+        return str(err)
+    if wrong:
+        return f'metadata.yaml counts messages the storage file does not give ({", ".join(wrong)})'
+    return None
 
 
 def repair(path: str | os.PathLike[str]) -> RepairReport:
@@ -238,7 +247,8 @@ def repair(path: str | os.PathLike[str]) -> RepairReport:
         raise BagError(msg)
     src = files[0]
     storage = 'mcap' if src.suffix == '.mcap' else 'sqlite3'
-    if (bag / 'metadata.yaml').exists() and _bag_is_readable(bag):
+    why = _why_unreadable(bag) if (bag / 'metadata.yaml').exists() else 'no metadata.yaml'
+    if why is None:
         info = bag_info(bag)
         return RepairReport(bag, False, storage, {t.name: t.count for t in info.topics}, None,
                             'bag is readable: nothing to repair', custom_data=info.custom_data)
@@ -302,6 +312,8 @@ def repair(path: str | os.PathLike[str]) -> RepairReport:
     if lost:
         damage.append(f'{lost} messages without a usable channel dropped')
     note = f'recovered {sum(counts.values())} messages on {len(counts)} topics'
+    if why.startswith('metadata.yaml counts'):
+        note += f'; {why}'
     if found.skipped:
         what = 'corrupt chunks' if storage == 'mcap' else 'unreadable rows'
         note += f'; {found.skipped} {what} skipped'
