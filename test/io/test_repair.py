@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import os
+import sqlite3
+from contextlib import closing
 import signal
 import subprocess
 import sys
@@ -254,3 +256,32 @@ def test_repair_keeps_custom_data_and_distro_of_an_old_metadata_file(tmp_path, t
     assert after['custom_data'] == meta.custom == {'operator': 'ann', 'cell': '3'}
     assert after['ros_distro'] == meta.ros_distro == 'jazzy'
     assert after['message_count'] == meta.message_count == 5
+
+
+def test_sqlite_repair_reads_past_a_damaged_messages_page(tmp_path, ts):
+    """A killed SQLite recording with one leaf page of the messages table zeroed: the rows of the
+    other pages are recovered, those after the damaged page too, and the damage is named."""
+    rec = BagRecorder(tmp_path / 'live', storage='sqlite3', topics={JS: JOINT_STATE}, flush_period=None).open()
+    for i in range(300):
+        rec.write(JS, 1000 + i, to_cdr(joint_state(i), JOINT_STATE, ts))
+    rec.flush()
+    copy_as_killed(rec.path, tmp_path / 'killed')
+    rec.close()
+    (db,) = (tmp_path / 'killed').glob('*.db3')
+    with closing(sqlite3.connect(db)) as con:
+        size = con.execute('PRAGMA page_size').fetchone()[0]
+        leaves = [p for (p,) in con.execute("SELECT pageno FROM dbstat WHERE name = 'messages' AND pagetype = 'leaf' "
+                                            'ORDER BY pageno')]
+    assert len(leaves) >= 4
+    data = bytearray(db.read_bytes())
+    page = leaves[len(leaves) // 2]
+    cells = int.from_bytes(data[(page - 1) * size + 3:(page - 1) * size + 5], 'big')  # read from the format
+    data[(page - 1) * size:page * size] = bytes(size)
+    db.write_bytes(bytes(data))
+
+    report = repair(tmp_path / 'killed')
+    assert any(d.startswith('messages table damaged') for d in report.damage), report.damage
+    got = _recovered_indices(tmp_path / 'killed')
+    assert len(got) == 300 - cells, str(sorted(set(range(300)) - set(got)))
+    assert got == sorted(set(got)) and set(got) <= set(range(300))
+    assert got[-1] == 299  # the pages after the damaged one were read

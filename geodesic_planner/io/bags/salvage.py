@@ -57,8 +57,6 @@ _UINT64 = 1 << 64
 #: A ROS 2 topic name (fully qualified, as recorded) and a message type name.
 _TOPIC_NAME = re.compile(r'/[A-Za-z_~{][A-Za-z0-9_/{}~]*\Z')
 _TYPE_NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]*/(msg/|srv/|action/)?[A-Za-z][A-Za-z0-9_]*\Z')
-#: Seeks past a damaged page of the messages table before giving up.
-_MAX_SEEKS = 64
 
 
 @dataclass
@@ -226,32 +224,67 @@ def _read_metadata(conn: sqlite3.Connection, found: Salvage) -> None:
 
 def _read_messages(conn: sqlite3.Connection, found: Salvage) -> list[Any]:
     """Every readable row of ``messages`` (id order), seeking past damaged pages."""
-    query = 'SELECT id, topic_id, timestamp, data FROM messages WHERE id > ? ORDER BY id'
+    query = 'SELECT id, topic_id, timestamp, data FROM messages WHERE id >= ? ORDER BY id'  # SeekGE
     rows, why = _rows(conn, query, (-(1 << 63),))
     if why and not rows:  # the ordered scan needs pages a plain one may not
         rows, why = _rows(conn, 'SELECT id, topic_id, timestamp, data FROM messages')
         if not why:
             return [r[1:] for r in rows]
-    first_why, gaps = why, 0
-    step, seeks = 1, 0
-    while why and seeks < _MAX_SEEKS:  # rowids ascend: look for readable rows after the damage
-        seeks += 1
-        last = max((r[0] for r in rows if isinstance(r[0], int)), default=0)
-        more, why_more = _rows(conn, query, (last + step,))
-        if more:
-            gaps += 1
-            rows += more
-            step, why = 1, why_more
-        elif not why_more:
-            why = ''  # nothing beyond: the damaged stretch was the last
+    first_why, stretches = why, 0
+    pos = max((r[0] for r in rows if isinstance(r[0], int)), default=-(1 << 63)) + 1  # next rowid to try
+    while why:
+        while True:  # one row at a time: a scan reads a row ahead and fails before returning it
+            got, why = _rows(conn, query + ' LIMIT 1', (pos,))
+            if not got:
+                break
+            rows += got
+            pos = got[0][0] + 1
+        start = _seek_past(conn, pos - 1) if why else None
+        if start is None:
             break
-        else:
-            step *= 2
+        more, why = _rows(conn, query, (start,))
+        stretches += 1
+        rows += more
+        pos = more[-1][0] + 1 if more else start  # the row at start reads alone (it was probed)
     if first_why:
         found.skipped += 1
-        lost = 'the rest unread' if why else f'the damaged pages skipped ({gaps} readable stretch(es) after them)'
+        lost = ('the rest unread' if why else
+                f'the damaged pages skipped ({stretches} readable stretch(es) after them)')
         found.damage.append(f'messages table damaged ({first_why}): {len(rows)} rows read, {lost}')
     return [r[1:] for r in rows]
+
+
+def _seek_past(conn: sqlite3.Connection, last: int) -> int | None:
+    """The smallest s > ``last`` from which ``id >= s`` can be read again; None: nothing to find.
+
+    Steps of doubling length find a start past the damage (at most 63 of them), a bisection then
+    the first one (rows between ``last`` and it were on the damaged pages). ``>=`` seeks to the
+    row itself; ``id > s`` would seek to s and step on, through the damaged page that holds s.
+    """
+    probe = 'SELECT id FROM messages WHERE id >= ? ORDER BY id LIMIT 1'
+
+    def readable(start: int) -> bool | None:  # None: readable, and no row after start
+        got, why = _rows(conn, probe, (start,))
+        return True if got else (None if not why else False)
+
+    lo, step = last, 1  # readable(last) is False: the scan stopped after it
+    while True:
+        hi = last + step
+        ok = readable(hi)
+        if ok is None:
+            return None
+        if ok:
+            break
+        lo, step = hi, step * 2
+        if step > 1 << 62:
+            return None
+    while hi - lo > 1:  # readable(lo) is False, readable(hi) True
+        mid = (lo + hi) // 2
+        if readable(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
 def _read_topics(conn: sqlite3.Connection, found: Salvage,
