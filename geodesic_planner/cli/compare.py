@@ -55,13 +55,20 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from ..core.chunks import in_chunks
 from ..core.errors import GeodesicPlannerError, RequestError
+from ..core.request import MAX_VIA_POSES
+from ..timing.resample import MAX_POINTS
 
 if TYPE_CHECKING:
     from ..core.kinematics import Chain
     from ..core.path import JointPath
     from ..core.request import PlanRequest
     from ..timing.trajectory import Trajectory
+
+#: Most IK samples of the Cartesian line + IK method (each is an IK solve and a knot of the timed
+#: path: about 5 ms each on the 2-core machine, so 1000 add about 5 s).
+MAX_CARTESIAN_SAMPLES = 1000
 
 #: 13-point central stencil offsets used for end-effector derivatives.
 _OFFSETS = np.arange(-6, 7, dtype=float)
@@ -98,13 +105,25 @@ def ee_profile(robot: Chain, path: JointPath, s: np.ndarray) -> dict[str, np.nda
     """
     s = np.asarray(s, dtype=float)
     q, dq, ddq, dddq = (np.asarray(a, dtype=float) for a in path.evaluate(s))
-    rate = np.maximum.reduce([np.ones(s.size), np.abs(dq).max(axis=1), np.sqrt(np.abs(ddq).max(axis=1)),
+    p, dp, ddp, dddp, R, dR, ddR, dddR, w, dw, ddw = in_chunks(
+        lambda *jet: _tool_jet(robot, *jet), q, dq, ddq, dddq)
+    return {'s': s, 'q': q, 'dq': dq, 'ddq': ddq, 'dddq': dddq,
+            'p': p, 'dp': dp, 'ddp': ddp, 'dddp': dddp,
+            'R': R, 'dR': dR, 'ddR': ddR, 'dddR': dddR,
+            'w': w, 'dw': dw, 'ddw': ddw}
+
+
+def _tool_jet(robot: Chain, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, dddq: np.ndarray
+              ) -> tuple[np.ndarray, ...]:
+    """The tool's position, rotation and angular velocity and their derivatives at rows of a joint
+    jet (:func:`ee_profile`; its memory grows with the rows: called on blocks of rows)."""
+    rate = np.maximum.reduce([np.ones(q.shape[0]), np.abs(dq).max(axis=1), np.sqrt(np.abs(ddq).max(axis=1)),
                               np.cbrt(np.abs(dddq).max(axis=1))])
     delta = 0.05 / rate                                                   # (M,)
-    h = delta[:, None] * _OFFSETS[None, :]                                # (M, 9)
+    h = delta[:, None] * _OFFSETS[None, :]                                # (M, 13)
     qj = (q[:, None] + h[..., None] * dq[:, None] + (h**2 / 2.0)[..., None] * ddq[:, None]
-          + (h**3 / 6.0)[..., None] * dddq[:, None])                      # (M, 9, dof)
-    T = np.asarray(robot.fk(qj))                                          # (M, 9, 4, 4)
+          + (h**3 / 6.0)[..., None] * dddq[:, None])                      # (M, 13, dof)
+    T = np.asarray(robot.fk(qj))                                          # (M, 13, 4, 4)
     D = np.einsum('mj,njab->mnab', _W, T)                                 # (4, M, 4, 4)
     scale = delta[None, :, None, None] ** np.arange(4)[:, None, None, None]
     D = D / scale
@@ -115,10 +134,7 @@ def ee_profile(robot: Chain, path: JointPath, s: np.ndarray) -> dict[str, np.nda
     w = _vee(R[1] @ Rt)
     dw = _vee(R[2] @ Rt + R[1] @ np.swapaxes(R[1], -1, -2))
     ddw = _vee(R[3] @ Rt + 2.0 * R[2] @ np.swapaxes(R[1], -1, -2) + R[1] @ np.swapaxes(R[2], -1, -2))
-    return {'s': s, 'q': q, 'dq': dq, 'ddq': ddq, 'dddq': dddq,
-            'p': p[0], 'dp': p[1], 'ddp': p[2], 'dddp': p[3],
-            'R': R[0], 'dR': R[1], 'ddR': R[2], 'dddR': R[3],
-            'w': w, 'dw': dw, 'ddw': ddw}
+    return p[0], p[1], p[2], p[3], R[0], R[1], R[2], R[3], w, dw, ddw
 
 
 def summarize(profile: dict[str, np.ndarray]) -> dict[str, Any]:
@@ -358,26 +374,35 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  '(JSON + Fig. 5/6-style PNGs).')
     parser.add_argument('request', help='YAML request (as for geodesic-plan)')
     parser.add_argument('--output', required=True, help='output directory (created if missing)')
-    parser.add_argument('--samples', type=int, default=1001, help='samples of s in [0, 1] (default 1001)')
-    parser.add_argument('--n-via', type=int, default=11, help='via points of the polynomial method (default 11)')
+    parser.add_argument('--samples', type=int, default=1001,
+                        help=f'samples of s in [0, 1], 2 to {MAX_POINTS} (default 1001)')
+    parser.add_argument('--n-via', type=int, default=11,
+                        help=f'via points of the polynomial method, 2 to {MAX_VIA_POSES} (default 11)')
     parser.add_argument('--max-velocity', type=_limits_arg, default=None,
                         help='joint velocity limit(s) for timing every method: V or V1,V2,... '
                              '(rad/s, m/s); default: the robot\'s')
     parser.add_argument('--max-acceleration', type=_limits_arg, default=None,
                         help='joint acceleration limit(s): A or A1,A2,... (rad/s^2, m/s^2); default: the robot\'s')
     parser.add_argument('--cartesian-samples', type=int, default=100,
-                        help='IK samples of the Cartesian line + IK method (default 100)')
+                        help=f'IK samples of the Cartesian line + IK method, 2 to {MAX_CARTESIAN_SAMPLES} '
+                             '(default 100)')
     parser.add_argument('--time-samples', type=int, default=4001,
-                        help='uniform time samples for the peaks in time (default 4001)')
+                        help=f'uniform time samples for the peaks in time, 2 to {MAX_POINTS} (default 4001)')
     parser.add_argument('--no-plots', action='store_true', help='write only comparison.json')
     try:
         args = parser.parse_args(argv)
     except _ArgError as err:
         print(f'ERROR: {err}', file=sys.stderr)
         return 1
-    for opt in ('samples', 'cartesian_samples', 'time_samples'):
-        if getattr(args, opt) < 2:
-            print(f"ERROR: --{opt.replace('_', '-')} must be at least 2", file=sys.stderr)
+    for opt, most, unit in (('samples', MAX_POINTS, 'points'), ('time_samples', MAX_POINTS, 'points'),
+                            ('cartesian_samples', MAX_CARTESIAN_SAMPLES, 'points'),
+                            ('n_via', MAX_VIA_POSES, 'via points')):
+        flag, value = f"--{opt.replace('_', '-')}", getattr(args, opt)
+        if value < 2:
+            print(f'ERROR: {flag} must be at least 2', file=sys.stderr)
+            return 1
+        if value > most:
+            print(f'ERROR: {flag}: {value} {unit}, more than {most}', file=sys.stderr)
             return 1
     try:
         from ..io.requests import load_request

@@ -45,6 +45,8 @@ class PlanRequest:
     blend_radius: float = 0.0
     items: list[MotionItem] = field(default_factory=list)
     mass: MassModel | None = None
+    #: Where the robot came from: a preset's name or a URDF file's path ('' : not known).
+    robot_source: str = ''
 
     def check(self) -> None:
         """The checks every source of a request shares (YAML files, the services); the start may

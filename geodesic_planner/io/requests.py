@@ -22,6 +22,7 @@ the previous one ended, blended at its goal within its own ``blend_radius`` (the
 from __future__ import annotations
 
 import os
+import stat
 from collections.abc import Mapping
 from typing import Any
 
@@ -33,7 +34,7 @@ from ..core.kinematics import Chain
 from ..core.motions import MotionItem
 from ..core.planner import check_method
 from ..core.ptp import mass_from_urdf
-from ..core.request import PlanRequest
+from ..core.request import MAX_ITEMS, MAX_VIA_POSES, PlanRequest
 from ..core.robots import load_robot, urdf_text
 from ..core.transforms import pose_from_mapping
 
@@ -42,6 +43,9 @@ KNOWN_KEYS = {'robot', 'metric', 'position_weight', 'orientation_weight', 'epsil
               'method', 'blend_radius', 'sequence'}
 #: Keys of a sequence item.
 ITEM_KEYS = {'motion', 'goal', 'goal_joints', 'interim', 'center', 'ptp', 'blend_radius'}
+#: Largest request or scene YAML file read, bytes: a request of MAX_VIA_POSES via poses or
+#: MAX_ITEMS sequence items, or a scene of MAX_OBJECTS objects, is well under it.
+MAX_YAML_BYTES = 1 << 20
 
 
 def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
@@ -73,6 +77,8 @@ def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
     via = data.get('via') or []
     if not isinstance(via, list):
         raise RequestError('request: via must be a list of poses')
+    if len(via) > MAX_VIA_POSES:
+        raise RequestError(f'request: via: {len(via)} poses, more than {MAX_VIA_POSES}')
     opts: dict[str, Any] = {}
     if 'metric' in data:
         opts['metric'] = str(data['metric'])
@@ -89,7 +95,7 @@ def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
         raise RequestError(f'request: blend_radius must be >= 0 m, got {blend!r}')
     req = PlanRequest(robot, pose('start'), pose('goal'), joints('start_joints'), joints('goal_joints'),
                       [pose_from_mapping(v, f'via[{i}]') for i, v in enumerate(via)], tol, opts, method,
-                      blend)
+                      blend, robot_source=robot_ref)
     if req.start is None and req.start_joints is None:
         raise RequestError('request: give start (a Pose) or start_joints')
     if data.get('sequence') is not None:
@@ -127,6 +133,8 @@ def parse_items(raw: object, robot: Chain) -> list[MotionItem]:
     """
     if not isinstance(raw, list) or not raw:
         raise RequestError('request: sequence must be a non-empty list of motions')
+    if len(raw) > MAX_ITEMS:
+        raise RequestError(f'request: sequence: {len(raw)} items, more than {MAX_ITEMS}')
     items = []
     for i, entry in enumerate(raw):
         what = f'sequence[{i}]'
@@ -168,20 +176,38 @@ def load_request(path: str) -> PlanRequest:
 
 
 def read_yaml(path: str, what: str, in_what: str) -> object:
-    """The document of a YAML file.
+    """The document of a YAML file: a regular file (never a FIFO or a device) of at most
+    :data:`MAX_YAML_BYTES`.
 
     Args:
         path: the file.
         what, in_what: how the errors name it: ``cannot read <what>``, ``malformed YAML in
             <in_what> at line L, column C``.
     Raises:
-        RequestError: unreadable file or malformed YAML.
+        RequestError: unreadable, not a regular file, too large, not UTF-8, malformed YAML.
     """
     try:
-        with open(path, encoding='utf-8') as fh:
-            return yaml.safe_load(fh)
+        info = os.stat(path)
+    except (OSError, ValueError) as err:  # ValueError: a NUL byte in the path
+        raise RequestError(f'cannot read {what}: {getattr(err, "strerror", None) or err}') from err
+    if not stat.S_ISREG(info.st_mode):
+        raise RequestError(f'cannot read {what}: not a regular file')
+    if info.st_size > MAX_YAML_BYTES:
+        raise RequestError(f'{what}: {info.st_size} bytes, more than {MAX_YAML_BYTES}')
+    try:
+        # O_NONBLOCK: should the path become a FIFO after the check, open() still returns at once.
+        with os.fdopen(os.open(path, os.O_RDONLY | os.O_NONBLOCK), 'rb') as fh:
+            raw = fh.read(MAX_YAML_BYTES + 1)
     except OSError as err:
-        raise RequestError(f'cannot read {what}: {err.strerror}') from err
+        raise RequestError(f'cannot read {what}: {err.strerror or err}') from err
+    if len(raw) > MAX_YAML_BYTES:
+        raise RequestError(f'{what}: more than {MAX_YAML_BYTES} bytes')
+    try:
+        return yaml.safe_load(raw.decode('utf-8'))
+    except UnicodeDecodeError as err:
+        raise RequestError(f'{what}: not UTF-8 (byte {err.start})') from err
+    except RecursionError as err:
+        raise RequestError(f'{what}: nested too deeply') from err
     except yaml.YAMLError as err:
         mark = getattr(err, 'problem_mark', None)
         where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''

@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cli_limits import QUICK, error_line, run_bounded
+
 from geodesic_planner import chain_from_dh
 from geodesic_planner.cli.compare import compare_request, ee_profile, main, summarize
 from geodesic_planner.core.transforms import line_slerp
@@ -443,3 +445,38 @@ def test_every_axis_has_a_label_with_a_unit_and_no_literal_underscore(drawn_figu
                 assert box.x0 >= ax.get_window_extent().x1 - 1, ax.get_title()
                 for text in legend.get_texts():
                     assert '_' not in text.get_text()
+
+
+# ------------------------------------------------------------------ every size bounded (issue 37)
+def _bounded():
+    from geodesic_planner.cli.compare import MAX_CARTESIAN_SAMPLES
+    from geodesic_planner.core.request import MAX_VIA_POSES
+    from geodesic_planner.timing.resample import MAX_POINTS
+    return [('--samples', 100_000_000, f'--samples: 100000000 points, more than {MAX_POINTS}'),
+            ('--samples', MAX_POINTS + 1, f'--samples: {MAX_POINTS + 1} points, more than {MAX_POINTS}'),
+            ('--time-samples', 10**9, f'--time-samples: {10**9} points, more than {MAX_POINTS}'),
+            ('--cartesian-samples', MAX_CARTESIAN_SAMPLES + 1,
+             f'--cartesian-samples: {MAX_CARTESIAN_SAMPLES + 1} points, more than {MAX_CARTESIAN_SAMPLES}'),
+            ('--n-via', 10**8, f'--n-via: {10**8} via points, more than {MAX_VIA_POSES}')]
+
+
+@pytest.mark.parametrize('case', range(5))
+def test_every_size_is_bounded(tmp_path, case):
+    """Each count is refused past its cap at once, under a 2 GB address space, writing nothing."""
+    flag, value, message = _bounded()[case]
+    proc, seconds = run_bounded([*cli(), str(PAPER_3R), '--output', 'out', flag, str(value)], tmp_path)
+    assert proc.returncode == 1
+    assert error_line(proc) == f'ERROR: {message}'
+    assert seconds < QUICK, seconds
+    assert not (tmp_path / 'out').exists()
+
+
+def test_at_the_cap_samples_fit_in_memory(tmp_path):
+    """--samples and --time-samples at MAX_POINTS: done in under 2 GB of address space (the
+    end-effector jets in blocks of rows; at once they needed more)."""
+    from geodesic_planner.timing.resample import MAX_POINTS
+    proc, _ = run_bounded([*cli(), str(PAPER_RRPP), '--output', 'out', '--no-plots', '--samples', str(MAX_POINTS),
+                           '--time-samples', str(MAX_POINTS)], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    data = json.loads((tmp_path / 'out' / 'comparison.json').read_text())
+    assert data['samples'] == MAX_POINTS and data['geodesic']['timed']['time_samples'] == MAX_POINTS

@@ -20,6 +20,7 @@ import yaml
 from numpy.testing import assert_allclose
 
 import urdf_util as U
+from cli_limits import QUICK, error_line, run_bounded
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 EXAMPLES = os.path.join(ROOT, 'msg_examples')
@@ -209,6 +210,10 @@ FAILURES = {
     'missing_urdf': ({'robot': 'nowhere.urdf', 'start': A, 'goal': B}, 'cannot read URDF'),
     'bad_quaternion': ({'robot': 'planar_3r', 'start': pose(2.5, 1.5, 0.0, {'z': 0.5, 'w': 0.5}), 'goal': B},
                        'not normalised'),
+    'zero_quaternion_goal': ({'robot': 'planar_3r', 'start': A,
+                              'goal': pose(1.5, 2.5, 0.0, {'x': 0.0, 'y': 0.0, 'z': 0.0, 'w': 0.0})},
+                             'goal.orientation: quaternion is not normalised (norm 0, expected 1 within 0.001): '
+                             'all zero, the orientation is unset'),
     'joint_count': ({'robot': 'planar_3r', 'start_joints': [0.1, 0.2], 'goal': B}, 'has 3 joints'),
     'unknown_key': ({'robot': 'planar_3r', 'start': A, 'goal': B, 'speed': 3}, "unknown keys ['speed']"),
     'singular_metric': ({'robot': 'planar_3r', 'metric': 'position', 'start': A, 'goal': B}, 'singular'),
@@ -352,3 +357,211 @@ def test_via_example_with_blends(tmp_path, capsys):
     seg = np.min([np.abs(cross2(b - a, xy[~inside] - a)) / np.linalg.norm(b - a)
                   for a, b in itertools.pairwise(pts)], axis=0)
     assert seg.max() <= 1e-8
+
+
+# ---------------------------------------------------------------------- every size bounded
+def _vias(n):
+    return {'robot': 'planar_3r', 'start': A, 'goal': B,
+            'via': [pose(2.0 + 0.001 * i, 2.0, 0.0, yaw_quat(0.6)) for i in range(n)]}
+
+
+def _items(n):
+    return {'robot': 'planar_3r', 'start': A, 'sequence': [{'motion': 'LIN', 'goal': B}] * n}
+
+
+def _bounded_case(name, d):
+    """(arguments, expected exit code, the ERROR line's regular expression) of one bounded option."""
+    from geodesic_planner.core.collision import MAX_OBJECTS
+    from geodesic_planner.core.request import MAX_ITEMS, MAX_VIA_POSES
+    from geodesic_planner.io.requests import MAX_YAML_BYTES
+    from geodesic_planner.timing.resample import MAX_POINTS
+    paper = os.path.join(EXAMPLES, 'paper_3r.yaml')
+    big = MAX_YAML_BYTES + 1
+    if name == 'samples':
+        return [paper, '--samples', 100_000_000], 2, rf'--samples: 100000000 points, more than {MAX_POINTS}$'
+    if name == 'samples_cap_plus_one':
+        return [paper, '--samples', MAX_POINTS + 1], 2, rf'--samples: {MAX_POINTS + 1} points, more than {MAX_POINTS}$'
+    if name == 'sample_period':    # the node's message: 1.69 s at 1 ns is 1.7e9 points
+        return ([paper, '--sample-period', '1e-9'], 1,
+                rf'the trajectory would have \d+ points \(1\.69 s every 1e-09 s\), more than {MAX_POINTS}: '
+                'increase --sample-period$')
+    if name == 'via':
+        (d / 'via.yaml').write_text(yaml.safe_dump(_vias(MAX_VIA_POSES + 1)))
+        return ['via.yaml'], 1, rf'request: via: {MAX_VIA_POSES + 1} poses, more than {MAX_VIA_POSES}$'
+    if name == 'sequence':
+        (d / 'seq.yaml').write_text(yaml.safe_dump(_items(MAX_ITEMS + 1)))
+        return ['seq.yaml'], 1, rf'request: sequence: {MAX_ITEMS + 1} items, more than {MAX_ITEMS}$'
+    if name == 'request_bytes':
+        (d / 'big.yaml').write_text('robot: planar_3r\n' + '#' * (big - 18) + '\n')
+        return ['big.yaml'], 1, rf"request 'big.yaml': {big} bytes, more than {MAX_YAML_BYTES}$"
+    if name == 'request_device':
+        return ['/dev/zero'], 1, r"cannot read request '/dev/zero': not a regular file$"
+    if name == 'scene_bytes':
+        (d / 'scene.yaml').write_text('objects: []\n' + '#' * (big - 13) + '\n')
+        return [paper, '--scene', 'scene.yaml'], 1, rf"scene 'scene.yaml': {big} bytes, more than {MAX_YAML_BYTES}$"
+    if name == 'scene_objects':
+        objects = [{'id': f'o{i}', 'type': 'sphere', 'dimensions': [0.01], 'pose': {'position': [9, 9, i]}}
+                   for i in range(MAX_OBJECTS + 1)]
+        (d / 'many.yaml').write_text(yaml.safe_dump({'objects': objects}))
+        return ([paper, '--scene', 'many.yaml'], 1,
+                rf'scene: objects: {MAX_OBJECTS + 1} objects, at most {MAX_OBJECTS}$')
+    raise AssertionError(name)
+
+
+BOUNDED = ('samples', 'samples_cap_plus_one', 'sample_period', 'via', 'sequence', 'request_bytes',
+           'request_device', 'scene_bytes', 'scene_objects')
+
+
+@pytest.mark.parametrize('name', BOUNDED)
+def test_every_size_is_bounded(name, tmp_path):
+    """Each size a user gives is refused past its cap at once, with the cap in the message, and
+    under a 2 GB address space (``--samples 100000000`` grew to 23 GB before)."""
+    import re
+    argv, code, pattern = _bounded_case(name, tmp_path)
+    proc, seconds = run_bounded(COMMAND + [*argv, '-o', 'out.json'], tmp_path)
+    line = error_line(proc)
+    assert proc.returncode == code, (proc.returncode, line)
+    assert re.search(pattern, line), line
+    assert seconds < QUICK, seconds
+    assert not (tmp_path / 'out.json').exists()
+
+
+def test_at_the_caps_a_plan_fits_in_memory(tmp_path):
+    """--samples at MAX_POINTS and a timed trajectory of nearly MAX_POINTS points: written, in
+    under 2 GB; the counts are those asked."""
+    from geodesic_planner.timing.resample import MAX_POINTS
+    period = 1.69 / (MAX_POINTS - 10)            # the 3R plan lasts 1.685 s
+    proc, seconds = run_bounded(COMMAND + [os.path.join(EXAMPLES, 'paper_3r.yaml'), '--samples', MAX_POINTS,
+                                           '--sample-period', repr(period), '-o', 'out.json'], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    d = json.loads((tmp_path / 'out.json').read_text())
+    assert len(d['s']) == MAX_POINTS
+    n = len(d['trajectory']['times'])
+    assert MAX_POINTS - 1000 < n <= MAX_POINTS
+    assert seconds < 240, seconds
+
+
+# ---------------------------------------------------------------------- the timed trajectory
+def fk_3r_tool(q):
+    """Tool (x, y, φ) of the unit-link planar 3R, (N, 3), by hand."""
+    c = np.cumsum(q, axis=1)
+    return np.stack([np.cos(c).sum(axis=1), np.sin(c).sum(axis=1), c[:, -1]], axis=1)
+
+
+@pytest.fixture(scope='module')
+def timed_3r(tmp_path_factory):
+    d = tmp_path_factory.mktemp('timed')
+    proc = run([os.path.join(EXAMPLES, 'paper_3r.yaml'), '--samples', 11, '--sample-period', 0.02,
+                '-o', d / 'out.json'], d)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == '' and '-> ' in proc.stderr
+    return json.loads((d / 'out.json').read_text())
+
+
+def test_timed_trajectory_times_and_rest(timed_3r):
+    tr = timed_3r['trajectory']
+    t = np.array(tr['times'])
+    assert tr['sample_period'] == 0.02 and t[0] == 0.0 and t[-1] == tr['duration'] > 1.0
+    assert_allclose(np.diff(t)[:-1], 0.02, rtol=0, atol=1e-12)
+    assert 0.0 < t[-1] - t[-2] <= 0.02 * (1 + 1e-6)
+    v, a = np.array(tr['velocities']), np.array(tr['accelerations'])
+    assert np.array(tr['positions']).shape == v.shape == a.shape == (t.size, 3)
+    assert_allclose(v[[0, -1]], 0.0, atol=1e-12)              # rest to rest
+    from geodesic_planner import load_robot
+    robot = load_robot('planar_3r')
+    assert np.all(np.abs(v) <= np.asarray(robot.max_velocity) * (1 + 1e-9))
+    assert np.all(np.abs(a) <= np.asarray(robot.max_acceleration) * (1 + 1e-9))
+
+
+def test_timed_trajectory_keeps_the_tool_on_the_line(timed_3r):
+    """Hand FK of the written positions: on the segment A-B, φ linear along it, monotonic."""
+    oracle = Oracle3R(os.path.join(EXAMPLES, 'paper_3r.yaml'))
+    tool = fk_3r_tool(np.array(timed_3r['trajectory']['positions']))
+    ab = oracle.pb[:2] - oracle.pa[:2]
+    rel = tool[:, :2] - oracle.pa[:2]
+    lam = rel @ ab / (ab @ ab)
+    assert np.abs(rel[:, 0] * ab[1] - rel[:, 1] * ab[0]).max() / np.linalg.norm(ab) <= 1e-6
+    assert np.abs(tool[:, 2] - (oracle.phia + lam * (oracle.phib - oracle.phia))).max() <= 1e-6
+    assert_allclose(lam[[0, -1]], [0.0, 1.0], atol=1e-6)
+    assert np.all(np.diff(lam) >= -1e-9)
+
+
+def test_timed_trajectory_velocities_and_accelerations_integrate_to_the_positions(timed_3r):
+    """Between points, q1 - q0 = h (v0 + v1) / 2 - h^2 (a1 - a0) / 12 + O(h^4 jerk's jump): the
+    written derivatives belong to the written positions."""
+    tr = timed_3r['trajectory']
+    t, q = np.array(tr['times']), np.array(tr['positions'])
+    v, a = np.array(tr['velocities']), np.array(tr['accelerations'])
+    h = np.diff(t)[:, None]
+    resid = np.diff(q, axis=0) - h * (v[1:] + v[:-1]) / 2 + h**2 * np.diff(a, axis=0) / 12
+    assert np.abs(resid).max() <= 1e-5
+    assert np.abs(np.diff(q, axis=0)).max() > 1e-3            # not a trivially still trajectory
+
+
+def test_timed_trajectory_matches_the_library_at_the_written_times(timed_3r):
+    from geodesic_planner.io.requests import load_request
+    tr = timed_3r['trajectory']
+    traj = load_request(os.path.join(EXAMPLES, 'paper_3r.yaml')).plan().timed()
+    q, dq, ddq = traj.at_time(np.array(tr['times']))
+    assert_allclose(tr['positions'], q, atol=1e-12)
+    assert_allclose(tr['velocities'], dq, atol=1e-12)
+    assert_allclose(tr['accelerations'], ddq, atol=1e-12)
+
+
+# ---------------------------------------------------------------------- --scene
+def _segment_distance(c, p0, p1):
+    """Distance from the point c (2,) to the segments p0-p1, (N, 2) each."""
+    d = p1 - p0
+    lam = np.clip(((c - p0) * d).sum(axis=1) / np.maximum((d * d).sum(axis=1), 1e-300), 0.0, 1.0)
+    return np.linalg.norm(p0 + lam[:, None] * d - c, axis=1)
+
+
+def test_scene_clear_reports_min_clearance_against_hand_distances(tmp_path):
+    """A ball beside the line: the plan passes; min_clearance is never above the smallest distance
+    between the ball and the link capsules (radius 0.05 m, joint to joint, by hand) at the written
+    points, and within 1 mm or 10 % below it."""
+    from geodesic_planner.core.collision import DEFAULT_LINK_RADIUS
+    centre, radius = np.array([2.35, 2.35]), 0.1
+    (tmp_path / 'ball.yaml').write_text(yaml.safe_dump({'objects': [
+        {'id': 'ball', 'type': 'sphere', 'dimensions': [radius], 'pose': {'position': [*centre.tolist(), 0.0]}}]}))
+    proc = run([os.path.join(EXAMPLES, 'paper_3r.yaml'), '--scene', 'ball.yaml', '--sample-period', 0.002,
+                '-o', 'out.json'], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads((tmp_path / 'out.json').read_text())
+    col = d['collision']
+    assert col['scene'] == 'ball.yaml' and col['branch'] == 'default' and 'ball' in col['pair']
+    q = np.array(d['trajectory']['positions'])
+    c = np.cumsum(q, axis=1)
+    joints = np.zeros((q.shape[0], 4, 2))
+    joints[:, 1:] = np.cumsum(np.stack([np.cos(c), np.sin(c)], axis=2), axis=1)
+    dist = np.min([_segment_distance(centre, joints[:, k], joints[:, k + 1]) for k in range(3)]
+                  + [np.linalg.norm(centre) * np.ones(len(q))], axis=0) - radius - DEFAULT_LINK_RADIUS
+    least = float(dist.min())
+    assert 0.1 < least < 0.5
+    assert col['min_clearance'] <= least + 1e-9
+    assert col['min_clearance'] >= least - max(1e-3, 0.1 * least) - 1e-6
+    assert f"min_clearance {col['min_clearance']:.4g} m" in proc.stderr
+
+
+def test_scene_collision_is_refused_with_its_reason(tmp_path):
+    proc, seconds = run_bounded(COMMAND + [os.path.join(EXAMPLES, 'paper_3r.yaml'), '--scene',
+                                           os.path.join(EXAMPLES, 'scene_box.yaml'), '-o', 'out.json'], tmp_path)
+    line = error_line(proc)
+    assert proc.returncode == 1
+    assert line.startswith("ERROR: collision on the way at ") and "'box' and 'link_3' are " in line, line
+    assert not (tmp_path / 'out.json').exists() and proc.stdout == ''
+
+
+@pytest.mark.parametrize('target, why', [('.', 'it is a directory'), ('no_dir/out.json', 'no such directory'),
+                                         ('a_file/out.json', 'not a directory')])
+def test_unwritable_output_is_refused_before_planning(tmp_path, capsys, monkeypatch, target, why):
+    from geodesic_planner.cli import plan as plan_cli
+    (tmp_path / 'a_file').write_text('x')
+    monkeypatch.chdir(tmp_path)
+    planned = []
+    monkeypatch.setattr(plan_cli, 'plan_in_scene', lambda *a: planned.append(a))
+    code = plan_cli.plan_main([os.path.join(EXAMPLES, 'paper_3r.yaml'), '-o', target])
+    out = capsys.readouterr()
+    assert code == 1 and out.out == '' and planned == []
+    lines = [ln for ln in out.err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith(f'ERROR: cannot write {target!r}') and why in lines[0], lines
