@@ -231,7 +231,8 @@ def plan_main(argv: Sequence[str] | None = None) -> int:
         data['trajectory'] = trajectory_to_dict(trajectory, args.sample_period)
         summary = ''
         if found is not None:
-            data['collision'] = {'scene': args.scene, 'min_clearance': found.min_clearance,
+            clearance = found.min_clearance if math.isfinite(found.min_clearance) else None  # None: nothing checked
+            data['collision'] = {'scene': args.scene, 'min_clearance': clearance,
                                  'pair': list(found.pair), 'time': found.time, 'fraction': found.fraction,
                                  'padding': model.padding if model is not None else math.nan,
                                  'branch': branch}
