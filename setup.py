@@ -28,6 +28,7 @@ setup(
     extras_require={
         'plot': ['matplotlib>=3.6'],
         'bag': ['rosbags>=0.11'],
+        'batch': ['ray>=2.60', 'pyarrow>=26'],   # geodesic-plan batch
     },
     zip_safe=True,
     maintainer='geodesic_planner developers',
