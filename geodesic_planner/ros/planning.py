@@ -6,7 +6,7 @@ immutable :class:`PlannerConfig` (or a :class:`ConfigError` naming the parameter
 :class:`~geodesic_planner.core.request.PlanRequest`; :func:`compute_plan` turns that into
 the JointTrajectory and the tool Path (and the tool poses the node's markers are built from)
 through the library (``PlanRequest.plan``, ``path.timed``, ``trajectory.sample``);
-:func:`error_code` names the PlanErrorCode of any error.
+:func:`error_code` (``core/codes.py``) names the PlanErrorCode of any error.
 
 Timing: ``path.timed`` under :func:`~geodesic_planner.timing.law.scaled_limits` of the
 configuration (``velocity_scaling``) and the request's factors (0 or GetPlan: the
@@ -30,10 +30,11 @@ from trajectory_msgs.msg import JointTrajectory
 from .. import GeodesicPlanner, load_robot
 from ..core.blend import BlendedPath
 from ..core.cancel import checkpoint
-from ..core.errors import (ConfigError, FrameError, GeodesicPlannerError, GoalInCollisionError, IKError, LimitError,
-                           LineLimitError, LineUnreachableError, PathFollowError, PathInCollisionError,
-                           PlanningFailedError, PlanTimeoutError, RequestError, StartInCollisionError,
+from ..core.codes import ERROR_CODES as ERROR_CODES  # the mapping lives in the library (planner_node's doc)
+from ..core.codes import error_code
+from ..core.errors import (ConfigError, GeodesicPlannerError, LimitError, PlanningFailedError, RequestError,
                            StartStateError, TrajectoryError)
+from ..core.errors import PlanTimeoutError as PlanTimeoutError  # planner_node imports it from here
 from ..core.branches import first_clear, start_branches
 from ..core.collision import MotionClearance
 from ..core.kinematics import Chain
@@ -57,39 +58,10 @@ WEIGHT_RATIO = (1e-3, 1e2)
 _ROBOT_KEYS = ('robot', 'robot_description', 'base_link', 'tip_link')
 
 
-#: Library error class -> PlanErrorCode value, one row per class; an error takes the code of the
-#: first class along its method resolution order that has a row (classes without one, e.g.
-#: BVPError, KinematicsError, CollisionError, take their base's).
-ERROR_CODES: dict[type[BaseException], int] = {
-    GeodesicPlannerError: PlanErrorCode.PLANNING_FAILED,
-    RequestError: PlanErrorCode.INVALID_REQUEST,
-    FrameError: PlanErrorCode.FRAME_TRANSFORM_FAILURE,
-    StartStateError: PlanErrorCode.START_STATE_MISMATCH,
-    TrajectoryError: PlanErrorCode.PLANNING_FAILED,        # the generated trajectory, not the request
-    ConfigError: PlanErrorCode.PLANNING_FAILED,            # no usable model yet
-    IKError: PlanErrorCode.NO_IK_SOLUTION,
-    LimitError: PlanErrorCode.JOINT_LIMITS_VIOLATED,
-    PathFollowError: PlanErrorCode.PLANNING_FAILED,        # a line through a singularity
-    LineLimitError: PlanErrorCode.JOINT_LIMITS_VIOLATED,   # a line past a joint limit
-    LineUnreachableError: PlanErrorCode.NO_IK_SOLUTION,    # a line out of reach
-    StartInCollisionError: PlanErrorCode.START_STATE_IN_COLLISION,
-    GoalInCollisionError: PlanErrorCode.GOAL_IN_COLLISION,
-    PathInCollisionError: PlanErrorCode.INVALID_MOTION_PLAN,
-    PlanTimeoutError: PlanErrorCode.TIMED_OUT,
-}
-
 #: PlanErrorCode value -> constant name (for logs and tests).
 CODE_NAMES: dict[int, str] = {
     getattr(PlanErrorCode, name): name for name in dir(PlanErrorCode)
     if name.isupper() and isinstance(getattr(PlanErrorCode, name), int)}
-
-
-def error_code(err: BaseException) -> int:
-    """The PlanErrorCode of an error raised while planning (PLANNING_FAILED for anything else)."""
-    for cls in type(err).__mro__:
-        if cls in ERROR_CODES:
-            return int(ERROR_CODES[cls])
-    return int(PlanErrorCode.PLANNING_FAILED)
 
 
 @dataclass(frozen=True)
