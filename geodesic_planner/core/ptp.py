@@ -122,6 +122,14 @@ class JointLinePath(JointPath):
         self._q_a = robot.check_joints(q_a, 'start joints')
         self._dq = robot.check_joints(q_b, 'goal joints') - self._q_a
 
+    @property
+    def joint_line(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(q_a, q_b - q_a)``, each (dof,), rad or m: the path is ``q_a + s (q_b - q_a)``.
+
+        The jerk-limited time law reads it to time the line in closed form (timing.line_profile).
+        """
+        return self._q_a.copy(), self._dq.copy()
+
     def deviation(self, s: np.ndarray) -> np.ndarray:
         """Zeros: a PTP has no tool geometry to keep."""
         return np.zeros(check_s(s).size)
