@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import os
 import stat
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -48,8 +48,12 @@ ITEM_KEYS = {'motion', 'goal', 'goal_joints', 'interim', 'center', 'ptp', 'blend
 MAX_YAML_BYTES = 1 << 20
 
 
-def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
+def parse_request(data: object, base_dir: str = '.', *,
+                  robot_loader: Callable[..., Chain] = load_robot) -> PlanRequest:
     """PlanRequest from a decoded YAML mapping.
+
+    ``robot_loader`` builds the robot (``load_robot``'s signature); a batch worker passes one
+    that keeps the robots it has built.
 
     Raises:
         RequestError: missing/unknown keys, bad values, unknown robot; KinematicsError for a bad URDF.
@@ -66,7 +70,7 @@ def parse_request(data: object, base_dir: str = '.') -> PlanRequest:
         raise RequestError(f'request: robot must be a string, got {robot_ref!r}')
     if robot_ref.endswith('.urdf') and not os.path.isabs(robot_ref):
         robot_ref = os.path.join(base_dir, robot_ref)
-    robot = load_robot(robot_ref, base_link=data.get('base_link'), tip_link=data.get('tip_link'))
+    robot = robot_loader(robot_ref, base_link=data.get('base_link'), tip_link=data.get('tip_link'))
 
     def pose(key: str) -> np.ndarray | None:
         return None if data.get(key) is None else pose_from_mapping(data[key], key)
