@@ -1,6 +1,6 @@
 """Joint position limits of a plan's ends and of its path, and the refusal that says where.
 
-A path that is the line + slerp pulled back (methods 'pullback' and 'redundant') and leaves a
+A path that is the line + slerp pulled back (methods 'pullback', 'redundant' and 'trace') and leaves a
 limit cannot follow the line: the refusal is a :class:`~.errors.LineLimitError` with the place
 and the followable fraction, worded as the continuation words it (``core/continuation.py``).
 Any other path (a collocation geodesic) leaving the limits is a plain LimitError.
@@ -20,7 +20,7 @@ BETWEEN = 7
 #: Bisections of a turning point's bracket (its place to 2**-TURN_BISECTIONS of the bracket).
 TURN_BISECTIONS = 30
 #: Methods whose paths are the line + slerp itself.
-LINE_METHODS = ('pullback', 'redundant')
+LINE_METHODS = ('pullback', 'redundant', 'trace')
 
 
 def check_joint_limits(robot: Chain, q: np.ndarray, what: str) -> None:

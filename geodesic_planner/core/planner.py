@@ -28,7 +28,7 @@ import numpy as np
 
 from .cancel import checkpoint
 from .continuation import LineFollow, follow_line
-from .errors import BVPError, LimitError, RequestError, SingularMetricError
+from .errors import BVPError, LimitError, PathFollowError, RequestError, SingularMetricError
 from .geodesic import (GeodesicEquations, GeodesicPath, SolverReport, collocation_rms, interpolation_error,
                        solve_geodesic_bvp)
 from .ik import IKSolution, nearest_turn, solve_ik
@@ -40,6 +40,7 @@ from .pullback import pulled_back_line
 from .polynomials import QuinticHermite, split_intervals
 from .redundant import LineTask, RedundantEquations
 from .redundant_solve import plan_redundant
+from .trace import line_curve, trace
 from .transforms import check_transform, line_slerp, so3_log
 
 if TYPE_CHECKING:
@@ -85,6 +86,19 @@ def snap_same(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
     """q_b, or exactly q_a when the two differ only by round-off (a zero-length path)."""
     q_b = np.array(q_b, dtype=float)
     return np.array(q_a, dtype=float) if np.abs(q_b - q_a).max() <= SAME_JOINTS else q_b
+
+
+def _other_configuration(robot: Chain, q_end: np.ndarray, q_b: np.ndarray) -> PathFollowError:
+    """The refusal of a LIN to goal joints that the line + slerp from the start does not lead to."""
+    j = int(np.argmax(np.abs(q_end - q_b)))
+    sv = np.linalg.svd(robot.jacobian(q_b), compute_uv=False)
+    why = (' (goal_joints are at a singularity, where the pose does not fix the joints)'
+           if sv[-1] < 1e-2 * sv[0] else '')
+    return PathFollowError(
+        f'the straight line cannot be followed by robot {robot.name!r} to goal_joints: at 100 % of the way '
+        f'it reaches the goal pose in another configuration, joint {robot.joint_names[j]!r} at {q_end[j]:.6g} '
+        f'instead of {q_b[j]:.6g}{why} (a LIN does not change the arm\'s branch; plan a PTP to these joints, or '
+        f'give the goal as a pose); followable fraction 1.0000', fraction=1.0)
 
 
 class GeodesicPlanner:
@@ -280,13 +294,8 @@ class GeodesicPlanner:
             check_joint_limits(self.robot, q_b, 'goal joints')
         if ik_b is not None and not self.allow_long_way:
             check_long_way(self.robot, q_a, q_b, 'the goal pose')
-        if self.redundant is not None and method == 'auto':
-            redundant = plan_redundant(self.redundant, LineTask(*self._task_line(q_a, q_b)), q_a, q_b, ik_a, ik_b,
-                                       t0=t0, path_tolerance=self.path_tolerance, max_nodes=self.max_nodes,
-                                       time_limit=self.time_limit,
-                                       check_limits=self._path_limits if self.check_limits else None)
-            if redundant is not None:
-                return redundant
+        if method == 'auto' and self._line_route():
+            return self._solve_line(q_a, q_b, ik_a, ik_b, t0)
         self.metric.check_regular(self.robot, np.stack([q_a, q_b]), ['the start', 'the goal'])
         s = np.linspace(0.0, 1.0, self.nodes)
         if method == 'collocation':
@@ -296,36 +305,111 @@ class GeodesicPlanner:
             exact = False
         else:
             q_g, v_g, exact = self.initial_guess(q_a, q_b, s)
-        line_error = follow = None
-        if not exact and method == 'auto' and self._line_is_geodesic():
-            # The mesh seeds missed the line's branch, or the line cannot be followed: walk it.
-            follow = self._follow_line(q_a, q_b)
-            line_error = follow.error
-            if line_error is None and self._reaches(follow.q[-1], q_a, q_b, ik_b is not None):
-                if ik_b is not None:     # a goal pose: the configuration the line leads to
-                    q_b = snap_same(q_a, follow.q[-1])
-                    ik_b = dataclasses.replace(ik_b, q=q_b)
-                q_g, v_g, exact = self.initial_guess(q_a, q_b, s, follow.seeds(s), on_branch=True)
         if exact:
-            path = self._pullback_path(q_a, q_b, s, q_g, v_g, ik_a, ik_b, t0, follow)
+            path = self._pullback_path(q_a, q_b, s, q_g, v_g, ik_a, ik_b, t0)
             if path is not None:
                 if self.check_limits:
                     check_path_limits(self.robot, path)
                 return path
             s, q_g, v_g = self._presize_mesh(q_a, q_b, s, q_g, v_g)
+        s_sol, q_sol, v_sol, a_sol, rep = solve_geodesic_bvp(
+            self.equations, q_a, q_b, s, q_g, v_g, tol=self.tol, max_nodes=self.max_nodes,
+            time_limit=self.time_limit)
+        rep = SolverReport(rep.status, rep.message, rep.iterations, rep.max_residual, rep.mesh_size,
+                           (time.perf_counter() - t0) * 1e3, rep.bc_residual)
+        path = GeodesicPath(self.equations, s_sol, q_sol, v_sol, rep, ik_a, ik_b, a_sol)
+        if self.check_limits:
+            check_path_limits(self.robot, path)
+        return path
+
+    def _line_route(self) -> bool:
+        """True where a plan between two poses is the tool's line + slerp or a refusal (the promise
+        of a LIN): the paper's metric on 6 joints with ε = 0, and beyond 6 joints with ε None or 0."""
+        return self._line_is_geodesic() or self.redundant is not None
+
+    def _solve_line(self, q_a: np.ndarray, q_b: np.ndarray, ik_a: IKSolution | None, ik_b: IKSolution | None,
+                    t0: float) -> GeodesicPath:
+        """The line + slerp from q_a, exactly, or the refusal that says why and where.
+
+        Beyond 6 joints the least-motion path (redundant_solve) where it is found inside the limits;
+        on 6 joints the pull-back at a mesh (the fast route) where the metric is regular at both ends
+        and the mesh finds one branch. Otherwise the line is traced step by step (core/trace.py),
+        which either follows it to the end or names the singularity, joint limit or reach where it
+        stops: never a path off the line, and never the general solver's words.
+        """
+        deadline = None if self.time_limit is None else t0 + self.time_limit
+        line_task = LineTask(*self._task_line(q_a, q_b))
+        if self.redundant is not None:
+            try:
+                path = plan_redundant(self.redundant, line_task, q_a, q_b, ik_a, ik_b, t0=t0,
+                                      path_tolerance=self.path_tolerance, max_nodes=self.max_nodes,
+                                      time_limit=self.time_limit,
+                                      check_limits=self._path_limits if self.check_limits else None)
+            except LimitError:
+                path = None          # the least-motion path leaves a limit: the trace may stay inside
+            if path is not None:
+                return path
+        else:
+            path = self._pullback_route(q_a, q_b, ik_a, ik_b, t0)
+            if path is not None:
+                return path
+        goal_joints = None if ik_b is not None else q_b
+        path, error = self._trace(line_task, q_a, goal_joints, ik_a, ik_b, t0, deadline)
+        w = line_task.w_body
+        if path is None and (goal_joints is not None or self.allow_long_way) and np.linalg.norm(w) > 1e-9:
+            # the slerp the long way round (the tool turns by 2π − |w| the other way): a joint goal
+            # asks for it, or allow_long_way permits it
+            long = LineTask(line_task.T_a, line_task.T_b, w - 2.0 * np.pi * w / np.linalg.norm(w))
+            path = self._trace(long, q_a, goal_joints, ik_a, ik_b, t0, deadline)[0]
+        if path is None:
+            assert error is not None
+            raise error
+        if ik_b is not None:
+            if not self.allow_long_way:
+                check_long_way(self.robot, q_a, path.q_goal, 'the goal pose, along the straight line,')
+            path.ik_goal = dataclasses.replace(ik_b, q=path.q_goal)
+        if self.check_limits:
+            check_path_limits(self.robot, path)
+        return path
+
+    def _trace(self, task: LineTask, q_a: np.ndarray, goal_joints: np.ndarray | None, ik_a: IKSolution | None,
+               ik_b: IKSolution | None, t0: float, deadline: float | None
+               ) -> tuple[GeodesicPath, None] | tuple[None, PathFollowError]:
+        """The line ``task`` traced from q_a (core/trace.py), ending at ``goal_joints`` if given."""
+        result = trace(self.robot, line_curve(task.poses, task.twist), q_a, metric=self.metric,
+                       tolerance=self.path_tolerance, t0=t0, deadline=deadline, ik_start=ik_a, ik_goal=ik_b,
+                       q_end=goal_joints)
+        if result.path is None:
+            assert result.error is not None
+            return None, result.error
+        if goal_joints is not None and not np.array_equal(result.path.q_goal, goal_joints):
+            return None, _other_configuration(self.robot, result.path.q_goal, goal_joints)
+        return result.path, None
+
+    def _pullback_route(self, q_a: np.ndarray, q_b: np.ndarray, ik_a: IKSolution | None,
+                        ik_b: IKSolution | None, t0: float) -> GeodesicPath | None:
+        """6 joints: the pulled-back line verified against the geodesic equations at a mesh (seeded
+        by the line followed by continuation where the mesh seeds miss the branch), or None."""
         try:
-            s_sol, q_sol, v_sol, a_sol, rep = solve_geodesic_bvp(
-                self.equations, q_a, q_b, s, q_g, v_g, tol=self.tol, max_nodes=self.max_nodes,
-                time_limit=self.time_limit)
-            rep = SolverReport(rep.status, rep.message, rep.iterations, rep.max_residual, rep.mesh_size,
-                               (time.perf_counter() - t0) * 1e3, rep.bc_residual)
-            path = GeodesicPath(self.equations, s_sol, q_sol, v_sol, rep, ik_a, ik_b, a_sol)
-            if self.check_limits:
-                check_path_limits(self.robot, path)
-        except (BVPError, SingularMetricError, LimitError) as err:
-            if line_error is not None:       # the line's reason and place, not the solver's words
-                raise line_error from err
-            raise
+            self.metric.check_regular(self.robot, np.stack([q_a, q_b]), ['the start', 'the goal'])
+        except SingularMetricError:
+            return None                       # the trace starts or ends at a singularity
+        s = np.linspace(0.0, 1.0, self.nodes)
+        q_g, v_g, exact = self.initial_guess(q_a, q_b, s)
+        follow = None
+        if not exact:
+            follow = self._follow_line(q_a, q_b)
+            if follow.error is not None or not self._reaches(follow.q[-1], q_a, q_b, ik_b is not None):
+                return None
+            if ik_b is not None:     # a goal pose: the configuration the line leads to
+                q_b = snap_same(q_a, follow.q[-1])
+                ik_b = dataclasses.replace(ik_b, q=q_b)
+            q_g, v_g, exact = self.initial_guess(q_a, q_b, s, follow.seeds(s), on_branch=True)
+            if not exact:
+                return None
+        path = self._pullback_path(q_a, q_b, s, q_g, v_g, ik_a, ik_b, t0, follow)
+        if path is not None and self.check_limits:
+            check_path_limits(self.robot, path)
         return path
 
     def _path_limits(self, path: GeodesicPath) -> None:

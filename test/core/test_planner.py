@@ -246,14 +246,16 @@ def test_tool_deviation_shrinks_linearly_with_epsilon():
 
 # ---------------------------------------------------------------------- singular ends, threads
 def test_singular_start_configuration_is_reported():
-    """UR5e with q5 = 0: wrist joints 4 and 6 aligned, J has rank 5, so the paper metric is
-    singular there; the error names the metric, the robot and where."""
+    """UR5e with q5 = 0: wrist joints 4 and 6 aligned, J has rank 5. The line to this goal cannot
+    be followed out of it: refused with fraction 0, the singularity and the tool's place (issue 36)."""
     robot = load_robot('ur5e')
     q_a = np.array([0.1, -1.2, 1.3, -1.5, 0.0, 0.4])
-    from geodesic_planner.core.errors import SingularMetricError
-    match = r"metric paper .* is singular for robot 'ur5e' at the start q=\[0\.1, -1\.2, 1\.3, -1\.5, 0\.0, 0\.4\]"
-    with pytest.raises(SingularMetricError, match=match):
+    x, y, z = U.ur5e_fk_batch(q_a[None])[0, :3, 3]
+    match = (rf"passes through a singularity of robot 'ur5e' at its start \(0 % of the way, "
+             rf"tool at {x:.4f}, {y:.4f}, {z:.4f} m;.*followable fraction 0\.0000")
+    with pytest.raises(PathFollowError, match=match) as info:
         GeodesicPlanner(robot).plan_joints(q_a, q_a + 0.2)
+    assert info.value.fraction < 5e-5
 
 
 def test_shared_planner_across_threads_gives_sequential_results():
@@ -490,8 +492,15 @@ def test_regression_singular_end(robot_name: str, q_s: list[float], end: str) ->
     q_s = np.array(q_s)
     q_o = q_s + np.where(q_s > 1.0, -0.2, 0.2)
     args = (q_s, q_o) if end == 'start' else (q_o, q_s)
-    expect_error('regression', lambda: planner.plan(None, None, *args), SingularMetricError,
-                 rf"^metric paper \(wp=1, wo=1\) is singular for robot '{robot_name}' at the {end} q=")
+    if robot_name == 'planar_3r':      # fewer than 6 joints: the geodesic BVP, which needs G regular
+        expect_error('regression', lambda: planner.plan(None, None, *args), SingularMetricError,
+                     rf"^metric paper \(wp=1, wo=1\) is singular for robot '{robot_name}' at the {end} q=")
+    elif end == 'start':               # the elbow exactly stretched: this line needs an infinite start rate
+        expect_error('regression', lambda: planner.plan(None, None, *args), PathFollowError,
+                     r"passes through a singularity of robot 'ur5e' at its start \(0 % of the way, tool at ")
+    else:                              # q5 = 0: the pose does not fix joints 4 and 6; the line ends elsewhere
+        expect_error('regression', lambda: planner.plan(None, None, *args), PathFollowError,
+                     r"(singularity of robot 'ur5e' at its end \(100 % of the way|goal_joints are at a singularity)")
 
 
 def test_regression_near_singular_diverging_solve() -> None:
@@ -505,7 +514,9 @@ def test_regression_near_singular_diverging_solve() -> None:
         check_path(planner, out.value, np.array(q_a), np.array(q_b))
     else:
         assert isinstance(out.error, PathFollowError), out.error
-        assert re.search(r'passes through a singularity .* at \d+(\.\d+)? % of the way', str(out.error)), out.error
+        # the elbow's limit 2π is its stretched singularity: either is the reason, with the place
+        assert re.search(r'(passes through a singularity|would pass its limit) .* at \d+(\.\d+)? % of the way',
+                         str(out.error)), out.error
 
 
 def test_regression_time_limit() -> None:

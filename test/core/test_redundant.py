@@ -18,6 +18,7 @@ import urdf_util as U
 from planning_checks import check_path, check_trajectory
 
 from geodesic_planner import GeodesicPlanner, load_robot
+from geodesic_planner.core.errors import PathFollowError
 from geodesic_planner.core.kinematics import REVOLUTE, chain_from_dh
 from geodesic_planner.core.metric import Metric
 from geodesic_planner.core.redundant import LineTask, RedundantEquations
@@ -317,14 +318,20 @@ def test_free_goal_outside_the_limits_keeps_the_ik_goal():
     pytest.fail('no move whose free goal lies beyond the fixed path on some joint')
 
 
-def test_singular_start_falls_back_to_collocation():
-    """At a singular start (xArm 7 stretched straight up) the line cannot be started with the
-    least-motion construction; the planner falls back to the collocation of G + εI and says so."""
+def test_singular_start_is_refused_at_its_start_and_collocation_plans_when_asked():
+    """At a singular start (xArm 7 stretched straight up) no finite joint motion moves the tool along
+    this line: refused with fraction 0, the singularity and the tool's place (issue 36: never a path
+    off the line); method='collocation' plans the geodesic of G + εI when asked, and says so."""
     robot = xarm7()
     q_a = np.zeros(7)
+    q_b = q_a + np.array([0.1, 0.2, -0.1, 0.3, 0.1, 0.2, 0.1])
     assert np.linalg.svd(fd_jacobian(U.xarm7_fk_batch, q_a), compute_uv=False)[-1] < 1e-9
-    path = GeodesicPlanner(robot).plan_joints(q_a, q_a + np.array([0.1, 0.2, -0.1, 0.3, 0.1, 0.2, 0.1]))
-    assert path.solver.method == 'collocation'
+    x, y, z = U.xarm7_fk_batch(q_a[None])[0, :3, 3]
+    match = rf'singularity of .* at its start \(0 % of the way, tool at {x:.4f}, {y:.4f}, {z:.4f} m'
+    with pytest.raises(PathFollowError, match=match) as info:
+        GeodesicPlanner(robot).plan_joints(q_a, q_b)
+    assert info.value.fraction < 5e-5
+    assert GeodesicPlanner(robot).plan_joints(q_a, q_b, method='collocation').solver.method == 'collocation'
 
 
 def test_continuation_seeds_a_second_try(monkeypatch):
