@@ -25,8 +25,6 @@ if TYPE_CHECKING:
 MAX_BRANCHES = 8
 #: Seeds tried when looking for branches (fixed: the same request finds the same branches).
 BRANCH_SEEDS = 24
-#: Intervals of the grid on which a trajectory's joint speeds are bounded.
-SPEED_GRID = 256
 #: Two solutions closer than this (every joint, rad or m, after 2π turns) are one branch.
 SAME_BRANCH = 1e-3
 
@@ -112,23 +110,7 @@ def first_clear(attempt: Callable[[np.ndarray | None], tuple[Any, Any]], model: 
 
 def check_trajectory(model: CollisionModel, trajectory: Any, refine: bool = True  # noqa: ANN401
                      ) -> MotionClearance:
-    """:meth:`CollisionModel.check_motion` of a timed trajectory (``refine``: as there).
-
-    The joint speed bound is the largest speed on a grid of :data:`SPEED_GRID` intervals plus what
-    the acceleration limits allow between grid points (``a h / 2``): a bound, not an estimate.
-    """
-    path = trajectory.path
-
-    def positions(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        s = trajectory.s_of_t(t)[0]
-        return np.asarray(path.evaluate(s, order=0)[0]), s
-
-    duration = float(trajectory.duration)
-    speed = np.asarray(trajectory.max_velocity, dtype=float)
-    if duration > 0.0:
-        grid = np.linspace(0.0, duration, SPEED_GRID + 1)
-        s, sd, _ = trajectory.s_of_t(grid)
-        sampled = np.abs(np.asarray(path.evaluate(s, order=1)[1]) * sd[:, None]).max(axis=0)
-        h = duration / SPEED_GRID
-        speed = np.minimum(speed, sampled + 0.5 * h * np.asarray(trajectory.max_acceleration, dtype=float))
-    return model.check_motion(positions, duration, speed, refine)
+    """:meth:`CollisionModel.check_path` of a timed trajectory's path (``refine``: as there), the
+    places also given as the trajectory's times: the answer is the path's, whatever its time law."""
+    return model.check_path(trajectory.path, refine, s_of_t=lambda t: trajectory.s_of_t(t)[0],
+                            duration=float(trajectory.duration))

@@ -1,52 +1,107 @@
-"""The smallest distance over a motion that the collision check found clear (``min_clearance``).
+"""``min_clearance``: the smallest distance over a path that the collision check found clear.
 
-:meth:`~.collision.CollisionModel.check_motion` leaves the distances at the times it checked:
-exact where they came near the padding, the bounding spheres' lower bounds elsewhere.
-:func:`refine_min_clearance` turns them into the smallest distance over the whole motion, to
-within a tolerance below it and never above: between two checked times a and b, pair p's distance
-is at least ``(d(a) + d(b) - R_p (b - a)) / 2`` (R_p: the pair's largest relative speed).
-Intervals whose bound is below the smallest exact distance found (U) less the tolerance are
+:meth:`~.collision.CollisionModel.check_path` checks the geometric path q(s), s in [0, 1] (never
+the samples of a time law: two time laws on one path get the same answer, bit for bit) and
+leaves the distances at the s it checked: exact where they came near the padding, the bounding
+spheres' lower bounds elsewhere. :func:`refine_min_clearance` turns them into the smallest
+distance over the whole path, to within ``resolution`` (1 mm) below it and never above: between
+two checked values a and b, pair p's distance is at least ``(d(a) + d(b) - R_p (b - a)) / 2``
+(R_p: a bound on how fast the pair's distance changes with s, from :func:`path_speed`).
+Intervals whose bound is more than ``resolution`` below the smallest exact distance found (U) are
 bisected, their ends made exact for that pair, until none is; the result is the smallest bound
-left.
+left, so the true minimum lies between it and U.
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .cancel import checkpoint
 
-__all__ = ['refine_min_clearance']
+__all__ = ['PATH_SPEED_GRID', 'Refined', 'path_speed', 'refine_min_clearance', 'time_at']
 
 #: (frames (N, bodies, 4, 4), configuration indices (K,), pair indices (K,)) -> exact distances (K,), m
 Exact = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+#: Intervals of the grid of s on which :func:`path_speed` bounds |dq/ds|.
+PATH_SPEED_GRID = 256
+
+
+class Refined(NamedTuple):
+    """What :func:`refine_min_clearance` found."""
+
+    #: a lower bound of the smallest distance over the motion, m
+    lower: float
+    #: the smallest exact distance found, m (>= the true minimum; ``closest - lower`` <= the
+    #: resolution unless the budget of configurations ran out)
+    closest: float
+    #: the pair index, the time (s) and the path parameter where ``closest`` is reached
+    pair: int
+    time: float
+    fraction: float
+    #: configurations evaluated in all
+    checks: int
+
+
+def path_speed(path: Any, intervals: int = PATH_SPEED_GRID) -> np.ndarray:  # noqa: ANN401
+    """A bound on |dq/ds| over s in [0, 1], per joint, (dof,): rad or m per unit of s.
+
+    The largest |dq/ds| on ``intervals`` uniform intervals plus ``h`` times the largest
+    |d²q/ds²| there (h = 1 / intervals): within an interval |dq/ds| exceeds its value at the
+    nearer end by at most h / 2 times the largest |d²q/ds²| in it; twice that absorbs the change
+    of d²q/ds² within the interval.
+
+    Args:
+        path: has ``evaluate(s, order)`` -> (q, dq/ds, d²q/ds², ...), each (len(s), dof).
+        intervals: intervals of the grid.
+    """
+    s = np.linspace(0.0, 1.0, int(intervals) + 1)
+    _, d1, d2 = path.evaluate(s, order=2)[:3]
+    return np.abs(np.asarray(d1)).max(axis=0) + np.abs(np.asarray(d2)).max(axis=0) / intervals
+
+
+def time_at(s_of_t: Callable[[np.ndarray], np.ndarray], duration: float, s: np.ndarray) -> np.ndarray:
+    """Times (M,) s at which a time law's nondecreasing s(t) reaches the path parameters ``s``
+    (M,): the first such time, by bisection to the precision of floats (0 for s <= s(0),
+    ``duration`` past s(duration))."""
+    s = np.atleast_1d(np.asarray(s, dtype=float))
+    lo, hi = np.zeros_like(s), np.full_like(s, float(duration))
+    for _ in range(64):
+        mid = 0.5 * (lo + hi)
+        before = np.asarray(s_of_t(mid)) < s
+        lo, hi = np.where(before, mid, lo), np.where(before, hi, mid)
+        if np.all(hi - lo <= 4.0 * np.spacing(np.maximum(hi, 1.0))):
+            break
+    return np.where(np.asarray(s_of_t(lo)) >= s, lo, hi)
 
 
 def refine_min_clearance(exact: Exact, frames: Callable[[np.ndarray], np.ndarray],
                          positions: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], R: np.ndarray,
                          t: np.ndarray, s: np.ndarray, D: np.ndarray, E: np.ndarray, P: np.ndarray, checks: int,
-                         resolution: float, tolerance: float, max_checks: int
-                         ) -> tuple[float, int, float, float, int]:
-    """The smallest distance over the motion, to within max(``resolution``, ``tolerance`` of it)
-    below, and where: (distance m, pair index, time s, path parameter s, configurations checked).
+                         resolution: float, max_checks: int) -> Refined:
+    """The smallest distance over the motion, to within ``resolution`` below it (never above),
+    and where its closest exact distance is.
 
     Args:
         exact: exact distances of pairs at configurations of the given body frames.
         frames: joint positions (M, dof) -> body frames (M, bodies, 4, 4).
-        positions: times (M,) s -> (joint positions (M, dof), path parameter (M,)).
-        R: each pair's largest relative speed, (pairs,), m/s.
-        t, s: the checked times (sorted) and their path parameter, (N,).
+        positions: the motion's parameter (M,) -> (joint positions (M, dof), path parameter (M,)).
+        R: a bound on how fast each pair's distance changes with the parameter, (pairs,), m per unit.
+        t, s: the checked values of the parameter (sorted) and their path parameter, (N,).
         D, E: distances (N, pairs), m, and where they are exact (the rest: lower bounds); updated.
-        P: the body frames at the checked times, (N, bodies, 4, 4).
+        P: the body frames at the checked values, (N, bodies, 4, 4).
         checks: configurations evaluated so far (at most ``max_checks`` in all; past it the
-            smallest bound left is the answer).
+            smallest bound left is the answer, more than ``resolution`` below the closest
+            distance found).
+        resolution: m.
+        max_checks: the budget of configurations.
     """
     def below(u: float) -> float:        # bounds under this are refined
-        return u - max(resolution, tolerance * u)
+        return u - resolution
 
-    while True:                 # best first: the smallest distance at the checked times, exact
+    while True:                 # best first: the smallest distance at the checked values, exact
         n, p = (int(i) for i in np.unravel_index(int(np.argmin(D)), D.shape))
         if E[n, p]:
             break
@@ -59,7 +114,7 @@ def refine_min_clearance(exact: Exact, frames: Callable[[np.ndarray], np.ndarray
     # the smallest bound set aside (a lower bound of the distance there)
     lowest = float(np.where(lb < below(U), np.inf, lb).min()) if lb.size else math.inf
     ends, pe = np.concatenate([ia, ia + 1]), np.concatenate([pa, pa])
-    todo = np.unique((ends * D.shape[1] + pe)[~E[ends, pe]])    # each (time, pair) once
+    todo = np.unique((ends * D.shape[1] + pe)[~E[ends, pe]])    # each (value, pair) once
     tn, tp = np.divmod(todo, D.shape[1])
     D[tn, tp] = exact(P, tn, tp)
     E[ends, pe] = True
@@ -76,11 +131,11 @@ def refine_min_clearance(exact: Exact, frames: Callable[[np.ndarray], np.ndarray
         ta, tb, Da, Db, pa, bound = ta[keep], tb[keep], Da[keep], Db[keep], pa[keep], bound[keep]
         if not pa.size:
             break
-        if checks + pa.size > max_checks:
+        tm = 0.5 * (ta + tb)
+        tu, at = np.unique(tm, return_inverse=True)    # one configuration per value
+        if checks + tu.size > max_checks:
             lowest = min(lowest, float(bound.min()))
             break
-        tm = 0.5 * (ta + tb)
-        tu, at = np.unique(tm, return_inverse=True)    # one configuration per time
         qm, sm = positions(tu)
         dm = exact(frames(qm), at, pa)
         sm = np.asarray(sm)[at]
@@ -92,4 +147,4 @@ def refine_min_clearance(exact: Exact, frames: Callable[[np.ndarray], np.ndarray
         Da, Db = np.concatenate([Da, dm]), np.concatenate([dm, Db])
         pa = np.concatenate([pa, pa])
     p_min, t_min, s_min = where
-    return min(U, lowest), p_min, t_min, s_min, checks
+    return Refined(min(U, lowest), U, p_min, t_min, s_min, checks)

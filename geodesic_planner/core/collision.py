@@ -21,8 +21,13 @@ on segment k moves at most ``sum_j |dq_j/dt| * reach_jk`` (m/s), where ``reach_j
 distance of the body from joint j's axis by the segment lengths (triangle inequality, independent
 of the configuration). A pair's distance therefore changes at most at the sum of its two bodies'
 speeds ``R``; an interval [a, b] is clear when ``d(a) + d(b) - R (b - a) > 2 padding``, else it
-is bisected: a thin plate between two checks is caught; refused within :data:`RESOLUTION` of it.
-:func:`~.clearance.refine_min_clearance` then bounds the smallest distance over the whole motion.
+is bisected: a thin plate between two checks is caught. What the check guarantees: a motion it
+accepts keeps every checked pair more than the padding apart all along; a motion it refuses has a
+pair at most the padding plus :data:`RESOLUTION` (its 1 mm margin) apart at the place it names.
+:meth:`CollisionModel.check_path` checks a geometric path q(s) this way, with s in place of t and
+a bound on |dq/ds| (so no time law can change its answer), and
+:func:`~.clearance.refine_min_clearance` then bounds the smallest distance over the whole path
+(``min_clearance``, within :data:`CLEARANCE_RESOLUTION` below it, never above).
 
 Exact distances are coal's, except between spheres and capsules (the presets' links): those come
 in batches from :mod:`.capsules`, equal to coal's within about 1e-16 m.
@@ -39,7 +44,7 @@ import numpy as np
 
 from .cancel import checkpoint
 from .capsules import capsule_distances
-from .clearance import refine_min_clearance
+from .clearance import path_speed, refine_min_clearance, time_at
 from .collision_bodies import (
     Body,
     SceneObject,
@@ -59,19 +64,23 @@ from .errors import (
 )
 from .kinematics import Chain
 
-__all__ = ['CLEARANCE_TOLERANCE', 'DEFAULT_LINK_RADIUS', 'DEFAULT_PADDING', 'RESOLUTION', 'CollisionModel',
+__all__ = ['CLEARANCE_RESOLUTION', 'DEFAULT_LINK_RADIUS', 'DEFAULT_PADDING', 'RESOLUTION', 'CollisionModel',
            'MotionClearance', 'SceneObject', 'Shape']
 
 #: Default ``collision_padding``: the clearance every checked pair keeps, m.
 DEFAULT_PADDING = 0.01
 #: Radius of the capsules along the links of a model without ``<collision>`` geometry, m.
 DEFAULT_LINK_RADIUS = 0.05
-#: A motion is refused where a distance comes within this of the padding, m.
+#: The check's margin, m: a motion is refused where a distance it finds is at most the padding
+#: plus this (it certifies clear only intervals whose bound is above the padding).
 RESOLUTION = 1e-3
-#: min_clearance is within max(RESOLUTION, this fraction of it) below the true smallest distance.
-CLEARANCE_TOLERANCE = 0.1
+#: min_clearance is within this below the true smallest distance over the path (never above), m.
+CLEARANCE_RESOLUTION = 1e-3
 #: Largest number of configurations one motion check evaluates before it refuses.
 MAX_CHECKS = 20_000
+#: Largest number of configurations min_clearance's refinement adds (past it: a lower bound, more
+#: than CLEARANCE_RESOLUTION below MotionClearance.closest).
+MAX_CLEARANCE_CHECKS = 20_000
 #: Largest number of scene objects.
 MAX_OBJECTS = 1000
 #: Bound used for a prismatic joint's travel when its limits are infinite, m.
@@ -85,13 +94,17 @@ class MotionClearance:
     """What a motion check found.
 
     Attributes:
-        min_clearance: the smallest distance between checked bodies over the whole motion, m, to
-            within max(:data:`RESOLUTION`, :data:`CLEARANCE_TOLERANCE` of it) below it, never
-            above (inf when nothing is checked); from ``check_motion(..., refine=False)``, the
-            smallest at the configurations checked, until :meth:`refined`.
-        pair: the two bodies that have it.
-        time: where, s; fraction: where, as the path parameter s.
+        min_clearance: the smallest distance between checked bodies over the whole path, m: a
+            lower bound, within :data:`CLEARANCE_RESOLUTION` (1 mm) of the true minimum and never
+            above it (inf when nothing is checked); a property of the path (:meth:`CollisionModel.check_path`:
+            time laws do not change it). From ``refine=False``: the smallest bound at the
+            configurations checked, until :meth:`refined`.
+        pair: the two bodies that come closest (('', '') when nothing is checked).
+        time: where, s (the check's own parameter when no time law is given); fraction: where,
+            as the path parameter s in [0, 1].
         checks: configurations evaluated.
+        closest: the exact distance of ``pair`` there, m (nan until refined): the true minimum
+            lies in [min_clearance, closest].
     """
 
     min_clearance: float
@@ -99,11 +112,23 @@ class MotionClearance:
     time: float
     fraction: float
     checks: int
+    closest: float = math.nan
     _refine: Callable[[], MotionClearance] | None = field(default=None, repr=False, compare=False)
 
     def refined(self) -> MotionClearance:
-        """This result with ``min_clearance`` over the whole motion (itself if it already is)."""
+        """This result with ``min_clearance`` over the whole path (itself if it already is)."""
         return self if self._refine is None else self._refine()
+
+    def summary(self) -> str:
+        """One line for a reply or a log: the value, its guarantee, and the closest pair and place."""
+        if self.pair == ('', ''):
+            return 'min_clearance inf m: no pair of bodies is checked'
+        where = (f'{quoted(self.pair[0])} and {quoted(self.pair[1])} come closest at '
+                 f'{100.0 * self.fraction:.1f} % of the way')
+        if math.isnan(self.closest):
+            return f'min_clearance {self.min_clearance:.4f} m at the configurations checked: {where}'
+        return (f'min_clearance {self.min_clearance:.4f} m (the smallest distance over the path, at most '
+                f'{CLEARANCE_RESOLUTION * 1e3:g} mm below it): {where}, {self.closest:.4f} m apart there')
 
 
 class CollisionModel:
@@ -354,52 +379,106 @@ class CollisionModel:
             self._raise(what, pairs[0], float(d[0]), 0.0 if what == 'start' else 1.0, math.nan)
         return float(d[0])
 
-    def _raise(self, what: str, pair: tuple[str, str], d: float, fraction: float, t: float) -> None:
-        where = 'touch' if d <= 0.0 else f'are {d:.4f} m apart'
+    def _apart(self, d: float) -> str:
+        """How far apart a refused pair is, and why that is refused."""
+        pad = self.padding
+        if d < 0.0:
+            return f'overlap by {-d:.4f} m (collision_padding {pad:g} m)'
+        if d == 0.0:
+            return f'touch (collision_padding {pad:g} m)'
+        if d <= pad:
+            return f'are {d:.4f} m apart, closer than collision_padding {pad:g} m'
+        return (f'are {d:.4f} m apart, within the motion check\'s {RESOLUTION * 1e3:g} mm margin of '
+                f'collision_padding {pad:g} m (it refuses any distance it finds up to {pad + RESOLUTION:.4f} m: '
+                f'between the configurations it evaluates it shows a motion clear of the padding only '
+                f'to within that margin)')
+
+    def _raise(self, what: str, pair: tuple[str, str], d: float, fraction: float, t: float,
+               budget: bool = False) -> None:
         bodies = f'{quoted(pair[0])} and {quoted(pair[1])}'
-        pad = f'collision_padding {self.padding:g} m'
         if what == 'start':
-            raise StartInCollisionError(f'start state in collision: {bodies} {where} ({pad})',
+            raise StartInCollisionError(f'start state in collision: {bodies} {self._apart(d)}',
                                         pair=pair, fraction=fraction, time=t, clearance=d)
         if what == 'goal':
-            raise GoalInCollisionError(f'goal state in collision: {bodies} {where} ({pad})',
+            raise GoalInCollisionError(f'goal state in collision: {bodies} {self._apart(d)}',
                                        pair=pair, fraction=fraction, time=t, clearance=d)
-        raise PathInCollisionError(
-            f'collision on the way: {bodies} come within {max(d, 0.0):.4f} m ({pad}) at '
-            f'{100.0 * fraction:.1f} % of the way (t = {t:.3f} s)',
-            pair=pair, fraction=fraction, time=t, clearance=d)
+        place = f'{100.0 * fraction:.1f} % of the way (t = {t:.3f} s)'
+        if budget:
+            raise PathInCollisionError(
+                f'collision on the way: refused, not shown clear of collision_padding {self.padding:g} m '
+                f'within {MAX_CHECKS} configurations from {place} on ({bodies} at least {d:.4f} m '
+                'apart there)', pair=pair, fraction=fraction, time=t, clearance=d)
+        raise PathInCollisionError(f'collision on the way at {place}: {bodies} {self._apart(d)}',
+                                   pair=pair, fraction=fraction, time=t, clearance=d)
+
+    def check_path(self, path: Any, refine: bool = True, *,  # noqa: ANN401
+                   s_of_t: Callable[[np.ndarray], np.ndarray] | None = None, duration: float = 0.0
+                   ) -> MotionClearance:
+        """Check a geometric path q(s), s in [0, 1], between its samples too: :meth:`check_motion`
+        with s as the parameter and :func:`~.clearance.path_speed` as the bound on |dq/ds|. The
+        answer (refusal, ``min_clearance``, pair and fraction) is the path's: no time law changes it.
+
+        Args:
+            path: has ``evaluate(s, order)`` -> (q, dq/ds, d²q/ds², ...), each (len(s), dof) (a
+                :class:`~.path.JointPath`).
+            refine: as :meth:`check_motion`'s.
+            s_of_t: a time law's s(t), times (M,) s -> s (M,), nondecreasing from 0 to 1 over
+                ``duration`` s: the places are also given as its times (``time``; else s).
+            duration: the time law's duration, s.
+        Raises:
+            StartInCollisionError, GoalInCollisionError, PathInCollisionError: as :meth:`check_motion`.
+        """
+        def positions(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            s = np.asarray(s, dtype=float)
+            return np.asarray(path.evaluate(s, order=0)[0]), s
+
+        time_of = None
+        if s_of_t is not None:
+            law, T = s_of_t, float(duration)
+
+            def time_of(s: np.ndarray) -> np.ndarray:
+                return np.where(s >= 1.0, T, time_at(law, T, s))
+        return self.check_motion(positions, 1.0, path_speed(path), refine, time_of=time_of)
 
     def check_motion(self, positions: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
-                     duration: float, joint_speed: np.ndarray, refine: bool = True) -> MotionClearance:
+                     duration: float, joint_speed: np.ndarray, refine: bool = True, *,
+                     time_of: Callable[[np.ndarray], np.ndarray] | None = None) -> MotionClearance:
         """Check a whole motion, between its samples too (see the module's doc for the rule).
 
         Args:
-            positions: times (M,) s -> (joint positions (M, dof), path parameter s (M,)).
-            duration: the motion's duration, s.
-            joint_speed: a bound on |dq/dt| over the motion, (dof,), rad/s or m/s.
+            positions: the motion's parameter (a time, or s itself), values (M,) -> (joint
+                positions (M, dof), path parameter s (M,)).
+            duration: the parameter's span, from 0 (s, or 1 for s).
+            joint_speed: a bound on |dq/d(parameter)| over the motion, (dof,), rad/s or m/s.
             refine: bound ``min_clearance`` over the whole motion now (False: later, by
                 :meth:`MotionClearance.refined`, e.g. after a trajectory is published).
+            time_of: the parameter's values (M,) -> the times reported (None: the parameter).
         Returns:
             the smallest clearance found, with its pair and place.
         Raises:
             StartInCollisionError, GoalInCollisionError, PathInCollisionError: a clearance within
-                the padding at t = 0, at the end, or on the way (the first place found).
+                the padding at the start, at the end, or on the way (the first place found; within
+                the padding plus :data:`RESOLUTION` on the way).
         """
+        def when(x: float) -> float:
+            return float(x) if time_of is None else float(np.asarray(time_of(np.array([float(x)])))[0])
+
         speed = np.abs(np.asarray(joint_speed, dtype=float)) * SPEED_MARGIN
         T = float(duration)
         if self._ia.size == 0:
-            return MotionClearance(math.inf, ('', ''), 0.0, 0.0, 0)
+            return MotionClearance(math.inf, ('', ''), 0.0, 0.0, 0, math.inf)
         R = self._relative_reach @ speed                      # (pairs,) m/s
         pad, tol = self.padding, RESOLUTION
         times = np.linspace(0.0, T, 9) if T > 0.0 else np.zeros(1)
         qs, s = positions(times)
         D, E, P = self._bounds(np.asarray(qs, dtype=float), exact_below=pad + tol + R * (times[-1] - times[0]) / 8)
         all_t, all_s, all_D, all_E, all_P = [times], [np.asarray(s, dtype=float)], [D], [E], [P]
-        self._stop_at_ends(D, times, np.asarray(s, dtype=float))
+        self._stop_at_ends(D, times, np.asarray(s, dtype=float), when)
         ta, tb, Da, Db = times[:-1], times[1:], D[:-1], D[1:]
         checks = len(times)
         grid_hit = np.any(pad + tol >= D, axis=1)
         first = float(times[grid_hit].min()) if grid_hit.any() else math.inf
+        budget = False
         while ta.size:
             checkpoint()
             unsafe = np.any(Da + Db - R * (tb - ta)[:, None] <= 2.0 * pad, axis=1) & (ta < first)
@@ -407,7 +486,8 @@ class CollisionModel:
             if not ta.size:
                 break
             if checks + ta.size > MAX_CHECKS:
-                first = min(first, float(ta[0]))
+                budget = float(ta.min()) < first
+                first = min(first, float(ta.min()))
                 break
             tm = 0.5 * (ta + tb)
             qm, sm = positions(tm)
@@ -428,35 +508,37 @@ class CollisionModel:
         if math.isfinite(first):
             n = int(np.argmin(np.abs(t_all - first)))
             p = int(np.argmin(D_all[n]))
-            self._raise('path', self._pair_names[p], float(D_all[n, p]), float(s_all[n]), float(t_all[n]))
+            self._raise('path', self._pair_names[p], float(D_all[n, p]), float(s_all[n]), when(t_all[n]), budget)
         order = np.argsort(t_all, kind='stable')
 
         def whole() -> MotionClearance:
             return self._min_clearance(positions, R, t_all[order], s_all[order], D_all[order],
-                                       np.concatenate(all_E)[order], np.concatenate(all_P)[order], checks)
+                                       np.concatenate(all_E)[order], np.concatenate(all_P)[order], checks, when)
         if refine:
             return whole()
         n_min, p_min = (int(i) for i in np.unravel_index(int(np.argmin(D_all)), D_all.shape))
-        return MotionClearance(float(D_all[n_min, p_min]), self._pair_names[p_min], float(t_all[n_min]),
-                               float(s_all[n_min]), checks, whole)
+        return MotionClearance(float(D_all[n_min, p_min]), self._pair_names[p_min], when(t_all[n_min]),
+                               float(s_all[n_min]), checks, math.nan, whole)
 
     def _min_clearance(self, positions: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], R: np.ndarray,
                        t: np.ndarray, s: np.ndarray, D: np.ndarray, E: np.ndarray, P: np.ndarray,
-                       checks: int) -> MotionClearance:
-        """The smallest distance over a clear motion, to within max(:data:`RESOLUTION`,
-        :data:`CLEARANCE_TOLERANCE` of it) below (:func:`~.clearance.refine_min_clearance`)."""
-        value, p, t_min, s_min, checks = refine_min_clearance(
+                       checks: int, when: Callable[[float], float]) -> MotionClearance:
+        """The smallest distance over a clear motion, to within :data:`CLEARANCE_RESOLUTION` below
+        (:func:`~.clearance.refine_min_clearance`)."""
+        found = refine_min_clearance(
             lambda frames, ns, ps: self._exact_many(frames, ns, ps, {}),
             lambda qs: self._poses(self.robot.check_joints(np.asarray(qs, dtype=float), 'q'))[0],
-            positions, R, t, s, D, E, P, checks, RESOLUTION, CLEARANCE_TOLERANCE, MAX_CHECKS)
-        return MotionClearance(value, self._pair_names[p], t_min, s_min, checks)
+            positions, R, t, s, D, E, P, checks, CLEARANCE_RESOLUTION, checks + MAX_CLEARANCE_CHECKS)
+        return MotionClearance(found.lower, self._pair_names[found.pair], when(found.time), found.fraction,
+                               found.checks, found.closest)
 
-    def _stop_at_ends(self, D: np.ndarray, times: np.ndarray, s: np.ndarray) -> None:
+    def _stop_at_ends(self, D: np.ndarray, times: np.ndarray, s: np.ndarray, when: Callable[[float], float]
+                      ) -> None:
         """Raise for a start or goal within the padding (exact there: the bound is small)."""
         for n, what in ((0, 'start'), (len(times) - 1, 'goal')):
             p = int(np.argmin(D[n]))
             if D[n, p] <= self.padding:
-                self._raise(what, self._pair_names[p], float(D[n, p]), float(s[n]), float(times[n]))
+                self._raise(what, self._pair_names[p], float(D[n, p]), float(s[n]), when(times[n]))
 
     # ------------------------------------------------------------------ drawing
     def body_poses(self, q: np.ndarray) -> dict[str, np.ndarray]:

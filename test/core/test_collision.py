@@ -26,7 +26,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from geodesic_planner import GeodesicPlanner, load_robot
-from geodesic_planner.core.collision import (CLEARANCE_TOLERANCE, DEFAULT_LINK_RADIUS, DEFAULT_PADDING, CollisionModel,
+from geodesic_planner.core.collision import (CLEARANCE_RESOLUTION, DEFAULT_LINK_RADIUS, DEFAULT_PADDING, CollisionModel,
                                              MotionClearance, SceneObject, Shape)
 from geodesic_planner.core.errors import (CollisionError, GeodesicPlannerError, GoalInCollisionError,
                                           PathInCollisionError, StartInCollisionError)
@@ -124,6 +124,7 @@ def link_bound(obstacle_distance: np.ndarray, q: np.ndarray) -> np.ndarray:
 def test_contract_constants():
     assert DEFAULT_PADDING == 0.01
     assert DEFAULT_LINK_RADIUS == 0.05
+    assert CLEARANCE_RESOLUTION == 1e-3                   # min_clearance: at most 1 mm below the truth
     for err in (StartInCollisionError, GoalInCollisionError, PathInCollisionError):
         assert issubclass(err, CollisionError)
     assert issubclass(CollisionError, GeodesicPlannerError)
@@ -279,6 +280,13 @@ def test_line_crossing_a_box_is_refused_where_the_sphere_reaches_the_padding(lin
     assert_allclose(err.clearance, FACE - (X_A + err.fraction * length) - CROSS_R, rtol=0, atol=DIST_TOL)
     assert err.clearance <= pad + RESOLUTION + DIST_TOL
     assert 0.0 < err.time < traj.duration
+    # the message says what the check guarantees: the pair is within the padding or its 1 mm margin
+    assert f'collision on the way at {100 * err.fraction:.1f} % of the way' in str(err), str(err)
+    if err.clearance > pad:
+        assert (f"are {err.clearance:.4f} m apart, within the motion check's 1 mm margin of collision_padding "
+                f'0.01 m (it refuses any distance it finds up to {pad + RESOLUTION:.4f} m') in str(err), str(err)
+    else:
+        assert f'are {err.clearance:.4f} m apart, closer than collision_padding 0.01 m' in str(err), str(err)
     assert_allclose(traj.s_of_t(err.time)[0][0], err.fraction, rtol=0, atol=1e-9)
 
 
@@ -290,7 +298,7 @@ def test_line_passing_under_a_box_reports_its_least_clearance(line_path):
     model = CollisionModel.for_robot(line_path.robot).with_objects([ball(CROSS_R, CROSS_OFFSET), box])
     result = model.check_motion(motion(traj), traj.duration, traj.max_velocity)
     assert isinstance(result, MotionClearance)
-    assert (1 - CLEARANCE_TOLERANCE) * gap - DIST_TOL <= result.min_clearance <= gap + DIST_TOL   # never above
+    assert gap - CLEARANCE_RESOLUTION - DIST_TOL <= result.min_clearance <= gap + DIST_TOL   # never above
     assert same_pair(result.pair, 'ball', 'box'), result.pair
     width = CROSS_BOX_SIZE[0] / (X_B - X_A)                          # the box's span in s
     s_in = (FACE - X_A) / (X_B - X_A)
@@ -301,7 +309,7 @@ def test_line_passing_under_a_box_reports_its_least_clearance(line_path):
 
 def test_least_clearance_between_checks_is_not_overstated(line_path):
     """A ball passing a fixed ball: the distance has a sharp minimum (gap at s0, an arbitrary place
-    no check is sure to land on). min_clearance is within the tolerance below the gap, never above."""
+    no check is sure to land on). min_clearance is within 1 mm below the gap, never above."""
     on_line(line_path, CROSS_OFFSET)
     traj = line_path.timed()
     gap, r_fixed, s0 = 0.04, 0.05, 0.3717
@@ -310,7 +318,7 @@ def test_least_clearance_between_checks_is_not_overstated(line_path):
     model = CollisionModel.for_robot(line_path.robot).with_objects([ball(CROSS_R, CROSS_OFFSET), fixed])
     result = model.check_motion(motion(traj), traj.duration, traj.max_velocity)
     assert same_pair(result.pair, 'ball', 'post'), result.pair
-    tol = max(RESOLUTION, CLEARANCE_TOLERANCE * gap)
+    tol = CLEARANCE_RESOLUTION
     assert gap - tol - DIST_TOL <= result.min_clearance <= gap + DIST_TOL, result.min_clearance
     # the place: where the sphere-sphere distance is within the tolerance of the gap
     dx = X_B - X_A
@@ -370,7 +378,9 @@ def test_start_and_goal_in_collision_name_the_end(line_path):
         assert same_pair(err.pair, 'ball', 'box'), err.pair
         assert err.fraction == fraction
         assert_allclose(err.time, time, rtol=0, atol=1e-12)
-        assert err.clearance <= 0.0
+        # the sphere's centre inside the cube: they overlap by the radius plus half the cube's edge
+        assert_allclose(err.clearance, -(CROSS_R + 0.025), rtol=0, atol=DEPTH_TOL)
+        assert f"'ball' and 'box' overlap by {CROSS_R + 0.025:.4f} m (collision_padding 0.01 m)" in str(err), err
         # the same end alone, as check_state sees it
         q_end = line_path.evaluate(np.array([fraction]), order=0)[0][0]
         with pytest.raises(error):
@@ -382,7 +392,7 @@ def test_free_line_passes_and_the_ends_pass_check_state(line_path):
     model = CollisionModel.for_robot(line_path.robot).with_objects(
         [ball(CROSS_R, CROSS_OFFSET), cross_box(face=X_B + CROSS_R + 0.1)])   # 10 cm beyond the goal
     result = model.check_motion(motion(traj), traj.duration, traj.max_velocity)
-    assert 0.1 * (1 - CLEARANCE_TOLERANCE) - DIST_TOL <= result.min_clearance <= 0.1 + DIST_TOL  # at the goal
+    assert 0.1 - CLEARANCE_RESOLUTION - DIST_TOL <= result.min_clearance <= 0.1 + DIST_TOL  # at the goal
     assert result.fraction == 1.0
     assert same_pair(result.pair, 'ball', 'box')
     assert model.check_state(line_path.q_start) > model.padding
