@@ -134,7 +134,9 @@ class PlanResult:
     mesh_size: int = 0
     #: largest distance of the tool from the straight segment(s), m (outside any blend zone)
     path_error: float = math.nan
-    #: smallest distance between checked bodies over the motion, m (nan: not checked)
+    #: smallest distance between checked bodies over the path, m, at most 1 mm below the true
+    #: minimum and never above (nan: not checked; inf: no pair checked); the path's, whatever
+    #: the time law (``core.collision.MotionClearance``)
     min_clearance: float = math.nan
     #: the start's IK branch: 'default', 'k of n', or '' (start given as joints or the current state)
     ik_branch: str = ''
@@ -144,6 +146,13 @@ class PlanResult:
     blend_deviation: tuple[float, ...] = ()
     #: what was planned otherwise than asked (a sequence's PTP without inertias)
     notes: tuple[str, ...] = ()
+    #: the two bodies that come closest (('', '') when not checked) and where, as the path
+    #: parameter s in [0, 1] (nan when not checked)
+    clearance_pair: tuple[str, str] = ('', '')
+    clearance_fraction: float = math.nan
+    #: the reply's message on success: the min_clearance line (value, guarantee, closest pair and
+    #: place; ``MotionClearance.summary``), empty when collisions are not checked
+    message: str = ''
 
 
 @dataclass(frozen=True)
@@ -156,6 +165,11 @@ class Outcome:
     published: bool = False
     fraction: float = -1.0
     item: int = -1      # a sequence's failing item
+
+    def __post_init__(self) -> None:
+        # a success says what its plan reports (the min_clearance line) unless given a message
+        if self.result is not None and not self.message:
+            object.__setattr__(self, 'message', self.result.message)
 
     @classmethod
     def failure(cls, err: GeodesicPlannerError) -> Outcome:
@@ -369,7 +383,7 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
         def branches(first: JointPath) -> list[np.ndarray]:
             assert T_start is not None
             return start_branches(config.planner, T_start, first.q_start, request.tolerance)
-        # min_clearance over the whole motion is bounded after the trajectory is published
+        # min_clearance over the whole path is bounded after the trajectory is published
         path, trajectory, found, branch = first_clear(attempt, config.collision,
                                                       branches if pose_start else None, refine=False)
         branch = branch if pose_start else ''
@@ -392,7 +406,8 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
     if on_trajectory is not None and not on_trajectory(msg):
         raise PlanAbandonedError
     t4 = time.perf_counter()
-    clearance = math.nan if found is None else found.refined().min_clearance
+    whole = None if found is None else found.refined()
+    clearance = math.nan if whole is None else whole.min_clearance
     t5 = time.perf_counter()
     poses = np.concatenate([_fk(config.robot, q[i:i + cv.CHECK_EVERY])
                             for i in range(0, len(q), cv.CHECK_EVERY)])
@@ -408,7 +423,10 @@ def compute_plan(config: PlannerConfig, request: PlanRequest,
     return PlanResult(msg, path_msg, poses, len(t), float(trajectory.duration),
                       int(solver.iterations), float(solver.time_ms), stages,
                       solver.method, int(solver.mesh_size), path_error, clearance, branch, deviation,
-                      tuple(getattr(path, 'notes', ())))
+                      tuple(getattr(path, 'notes', ())),
+                      ('', '') if whole is None else whole.pair,
+                      math.nan if whole is None else whole.fraction,
+                      '' if whole is None else whole.summary())
 
 
 def _fk(robot: Chain, q: np.ndarray) -> np.ndarray:

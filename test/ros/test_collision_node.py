@@ -7,10 +7,12 @@ its links (radius link_radius) and exact geometry of spheres and boxes placed on
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterator
 from pathlib import Path as FsPath
 from typing import Any
 
+import numpy as np
 import pytest
 
 pytest.importorskip('rclpy')
@@ -73,6 +75,37 @@ def scene(helper: Any, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Sce
         p.stop()
 
 
+#: The success message: min_clearance, the closest pair, the place and their exact distance there.
+CLOSEST = re.compile(r"min_clearance (?P<value>[0-9.]+) m \(the smallest distance over the path, at most 1 mm "
+                     r"below it\): '(?P<a>[^']+)' and '(?P<b>[^']+)' come closest at (?P<percent>[0-9.]+) % of "
+                     r"the way, (?P<closest>[0-9.]+) m apart there")
+
+
+def least_distance(trajectory: Any, x: float, y: float, edge: float) -> float:
+    """The smallest distance (m) at the trajectory's points between the planar 3R's link capsules
+    (unit links from joint to joint, radius RADIUS) and a cube of ``edge`` m centred at (x, y, 0)."""
+    coal = pytest.importorskip('coal')
+    box, at = coal.Box(edge, edge, edge), coal.Transform3s(np.eye(3), np.array([x, y, 0.0]))
+    least = math.inf
+    for point in trajectory.points:
+        angle, p = 0.0, np.zeros(3)
+        for q in point.positions:
+            angle += q
+            u = np.array([math.cos(angle), math.sin(angle), 0.0])
+            R = np.stack([np.cross([0.0, 0.0, 1.0], u), [0.0, 0.0, 1.0], u], axis=1)   # z along the link
+            link = coal.Transform3s(R, p + 0.5 * u)
+            least = min(least, coal.distance(coal.Capsule(RADIUS, 1.0), link, box, at,
+                                             coal.DistanceRequest(), coal.DistanceResult()))
+            p = p + u
+    return least
+
+
+def duration(reply: Any) -> float:
+    """The duration (s) of a reply's trajectory."""
+    end = reply.trajectory.points[-1].time_from_start
+    return end.sec + 1e-9 * end.nanosec
+
+
 def _away(req: Any) -> Any:
     """A from-state request that cannot collide with the scene file's box (a tiny move at A)."""
     req.goal = pose_3r(START_3R[0], START_3R[1] - 0.01, START_3R[2])
@@ -97,6 +130,23 @@ def test_box_across_the_line_is_refused_then_moved_aside(scene: ScenePlanner) ->
     assert PADDING < resp.min_clearance < math.inf
     listed = scene.call(scene.list, ListCollisionObjects.Request()).objects
     assert [(o.id, o.pose.position.x, o.pose.position.y) for o in listed] == [('box', 3.5, 3.5)]
+    # the success message names the closest pair and the place, and the clearance is never above
+    # the distances at the published points (capsules and box placed here, coal's distances)
+    said = CLOSEST.fullmatch(resp.message)
+    assert said is not None, resp.message
+    assert float(said['value']) == pytest.approx(resp.min_clearance, abs=5e-5)
+    assert float(said['value']) <= float(said['closest']) <= float(said['value']) + 1e-3 + 1e-4
+    assert 0.0 <= float(said['percent']) <= 100.0
+    assert resp.min_clearance <= least_distance(resp.trajectory, 3.5, 3.5, 0.3) + 1e-9
+    # the path's, not the time law's: a tool speed limit stretches the motion, nothing else changes
+    scene.set_parameters(max_tool_speed=0.05)
+    try:
+        slow = scene.plan(plan_request(pose_3r(*START_3R), pose_3r(*GOAL_3R)))
+    finally:
+        scene.set_parameters(max_tool_speed=0.0)
+    assert slow.error_code.val == PlanErrorCode.SUCCESS, slow.message
+    assert duration(slow) > 1.5 * duration(resp)
+    assert slow.min_clearance == resp.min_clearance and slow.message == resp.message
 
 
 def test_scene_markers_follow_the_scene(scene: ScenePlanner) -> None:
