@@ -28,6 +28,10 @@ q(s) never changes, only s(t).
    the acceleration limits scaled by ACCEL_SCALES, keeping the shortest law (gentler
    accelerations allow gentler ramps: the 7-segment optimum peaks at sqrt(vmax jmax)).
 4. ``duration=`` stretches the law uniformly (never shorter than the minimum).
+
+A path that declares itself a straight joint line (``joint_line``: a PTP's
+:class:`~geodesic_planner.core.ptp.JointLinePath`) without tool limits skips all of this: its
+time-optimal 7-segment law is in closed form (:mod:`.line_profile`).
 """
 from __future__ import annotations
 
@@ -40,6 +44,7 @@ from ..core.cancel import checkpoint
 from ..core.errors import LimitError
 from . import kernels
 from .law import final_duration
+from .line_profile import time_joint_line
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
 from .checks import local_cap
@@ -113,6 +118,9 @@ class JerkLimited:
         """
         if limits.max_jerk is None:
             raise LimitError('JerkLimited needs max_jerk')
+        line = getattr(path, 'joint_line', None)
+        if line is not None and limits.max_tool_speed is None and limits.max_tool_angular_speed is None:
+            return time_joint_line(path, line, limits, duration)     # closed form, time-optimal
         ps = refine_adaptively(path, sample_path(path, int(self.grid_points)))
         vmax, amax, jmax = limits.max_velocity, limits.max_acceleration, limits.max_jerk
 

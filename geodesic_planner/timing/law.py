@@ -62,6 +62,8 @@ def _limit(value: npt.ArrayLike | None, default: npt.ArrayLike | None, dof: int,
     arr = arr.reshape(-1)
     if arr.shape != (dof,):
         raise LimitError(f'{what}: expected 1 or {dof} values (one per joint), got {arr.size}')
+    if all(0.0 < x < math.inf for x in arr.tolist()):     # the usual case, a few µs less
+        return arr
     bad = np.flatnonzero(~(np.isfinite(arr) & (arr > 0.0)))
     if bad.size:
         i = int(bad[0])

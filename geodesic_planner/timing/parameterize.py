@@ -21,6 +21,10 @@ from .tuning import CHECK_MARGIN, TOPP_MARGIN
 from .trajectory import Trajectory
 
 
+#: The default jerk-limited law (immutable: shared by every call with the default options).
+_JERK_LIMITED = JerkLimited()
+
+
 def time_parameterize(path: PathLike, max_velocity: npt.ArrayLike | None = None,
                       max_acceleration: npt.ArrayLike | None = None,
                       duration: float | None = None, *, law: TimeLaw | None = None,
@@ -67,7 +71,8 @@ def time_parameterize(path: PathLike, max_velocity: npt.ArrayLike | None = None,
             it), or a path that cannot be traversed.
     """
     if law is None and max_jerk is not None:
-        law = JerkLimited(grid_points=int(grid_points), refine=refine, check_samples=check_samples)
+        law = (_JERK_LIMITED if (grid_points, refine, check_samples) == (100, 2, None) else
+               JerkLimited(grid_points=int(grid_points), refine=refine, check_samples=check_samples))
     elif law is None:
         law = SmoothRestToRest(grid_points=int(grid_points), refine=refine, smoothing=smoothing,
                                check_samples=check_samples)

@@ -16,8 +16,10 @@ class PathLike(Protocol):
     """A joint path q(s), s in [0, 1], as the time laws read it.
 
     Optional attributes, read with ``getattr``: ``breakpoints`` (values of s where derivatives
-    may jump; the law rests where q' jumps) and ``robot`` (its ``max_velocity`` and
-    ``max_acceleration``, shape (dof,), are the default limits).
+    may jump; the law rests where q' jumps), ``robot`` (its ``max_velocity`` and
+    ``max_acceleration``, shape (dof,), are the default limits) and ``joint_line`` (``(q_a, dq)``
+    when the path is the straight joint line ``q_a + s dq``: the jerk-limited law times it in
+    closed form, :mod:`.line_profile`).
     """
 
     @property
