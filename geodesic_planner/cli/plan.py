@@ -206,7 +206,12 @@ def _parser() -> _Parser:
 
 
 def plan_main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``geodesic-plan``; returns the exit code (0 ok, 1 error, 2 bad arguments)."""
+    """Entry point of ``geodesic-plan``; returns the exit code (0 ok, 1 error, 2 bad arguments).
+    ``geodesic-plan batch ...`` is :func:`geodesic_planner.cli.batch.main`."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ['batch']:
+        from .batch import main as batch_main
+        return batch_main(argv[1:])
     from ..io.requests import load_request
     try:
         args = _parser().parse_args(argv)
