@@ -26,7 +26,9 @@ q(s) never changes, only s(t).
    (jmax / |q'''|)^(2/3)``: what a blend's third derivative allows), the search runs under that
    cap. When the jerk binds (over LOOSE times the v/a optimum), the optimal pass is repeated with
    the acceleration limits scaled by ACCEL_SCALES, keeping the shortest law (gentler
-   accelerations allow gentler ramps: the 7-segment optimum peaks at sqrt(vmax jmax)).
+   accelerations allow gentler ramps: the 7-segment optimum peaks at sqrt(vmax jmax)). A path
+   without rests inside also gets the 7-segment laws of s under constant bounds, stretched into
+   the limits (:func:`_constant_bound`); the shortest law is kept.
 4. ``duration=`` stretches the law uniformly (never shorter than the minimum).
 
 A path that declares itself a straight joint line (``joint_line``: a PTP's
@@ -44,7 +46,7 @@ from ..core.cancel import checkpoint
 from ..core.errors import LimitError
 from . import kernels
 from .law import final_duration
-from .line_profile import time_joint_line
+from .line_profile import line_bounds, seven_segment, time_joint_line
 from .types import JointLimits, PathLike
 from .sampling import PathSamples, refine_adaptively, sample_path
 from .checks import local_cap
@@ -69,6 +71,8 @@ LOCAL_TRIGGER = 1.1
 CRUISE_TRIGGER = 0.5
 #: Local passes stop after two in a row that shorten the law by less than this fraction.
 LOCAL_GAIN = 0.002
+#: (acceleration, jerk) factors on the constant bounds of :func:`_constant_bound`'s 7-segment laws.
+CONSTANT_SHAPES = ((1.0, 1.0), (1.2, 0.6), (0.8, 0.8))
 
 
 def _reference_width(fine: PathSamples, x: np.ndarray, pieces: list[tuple[float, StarPiece]],
@@ -178,6 +182,8 @@ class JerkLimited:
         law, lam = best
         if lam > LOCAL_TRIGGER:     # a local dip the filter cannot follow: slow down near it
             law, lam = _local_passes(fine, best_x, best_beta, best, checker, cap, jmax)
+        if len(law.width) == 1:     # no rest inside: the constant-bound 7-segment laws may be shorter
+            law, lam = _constant_bound(fine, limits, checker, (law, lam))
         # The search compared widths on interpolated derivatives; the law kept is checked exactly.
         lam = checker.stretch(law, exact=True)
         t_min = lam * law.duration
@@ -227,6 +233,41 @@ def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[Box
         stale = 0 if gain else stale + 1
         if lam <= 1.0 + CHECK_MARGIN or stale >= 2:     # within the limits, or no longer paying
             break
+    return best
+
+
+def _constant_bound(fine: PathSamples, limits: JointLimits, checker: BoxCheck,
+                    best: tuple[BoxLaw, float]) -> tuple[BoxLaw, float]:
+    """The shortest of ``best`` and the 7-segment laws of s under constant bounds (:mod:`.line_profile`
+    with the path's largest |q'| per joint as the line's steps, the acceleration and jerk bounds
+    times CONSTANT_SHAPES), each uniformly stretched into the limits: (law, its stretch).
+
+    Such a law is the box filter of the trapezoid ``x = min(vp^2, 2 a s, 2 a (1 - s))`` with the
+    window ``a / J`` (a its peak acceleration, :class:`.line_profile.SevenSegment`), built on the
+    trapezoid's own four nodes, so exactly. Where the path is nearly straight in the joints and the
+    jerk binds, it beats the filtered time-optimal profile (whose window is the same everywhere
+    and whose acceleration peaks below the limit): ur5e LINs at 15 rad/s^3 up to 14 % shorter."""
+    steps = np.maximum(np.abs(fine.aL), np.abs(fine.aR)).max(axis=0)
+    if not np.any(steps):
+        return best
+    V, A, J = line_bounds(steps, limits, TOPP_MARGIN)
+    for fa, fj in CONSTANT_SHAPES:
+        checkpoint()
+        seven = seven_segment(V, fa * A, fj * J)
+        a_peak, x_peak = seven.peak_acceleration, seven.peak_velocity ** 2
+        corner = x_peak / (2.0 * a_peak)        # the trapezoid's own nodes: its s* is exact
+        if not 0.0 < corner < 0.5:
+            continue
+        pieces = star_pieces(np.array([0.0, corner, 1.0 - corner, 1.0]), np.array([0.0, x_peak, x_peak, 0.0]))
+        if len(pieces) != 1:
+            continue
+        tables = star_tables(pieces) if kernels.active() else None
+        # a window a hair shorter than the star's cruise when the 7-segment law has none (two jerk
+        # events would coincide there, and a check could read them as one jump of 2 J)
+        width = np.array([a_peak / (fj * J) * (1.0 - 1e-6)])
+        lam, duration, exact = checker.search(pieces, tables, width, best[1] * best[0].duration)
+        if exact and lam * duration < best[1] * best[0].duration:
+            best = (build_box_law(pieces, width, tables), lam)
     return best
 
 

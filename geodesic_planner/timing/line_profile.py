@@ -45,9 +45,17 @@ class SevenSegment:
         states: s, sdot, sddot at those starts, (4, 3); 1, 1/s, 1/s^2.
         jerks: sdddot on each, (4,), 1/s^3.
         peak_velocity: the largest sdot, 1/s.
+        peak_acceleration: the largest sddot, 1/s^2 (A, or below it when A is not reached).
+
+    It is the box filter, over a window ``peak_acceleration / J``, of the bang-bang profile that
+    accelerates at ``peak_acceleration`` to ``peak_velocity`` and cruises (:mod:`.jerk` builds it so).
     """
 
     __slots__ = ('_knots', '_states', 'duration', 'jerks', 'peak_velocity')
+
+    @property
+    def peak_acceleration(self) -> float:
+        return float(self._states[1][2])
 
     def __init__(self, duration: float, knots: tuple[float, ...], states: tuple[tuple[float, float, float], ...],
                  jerks: tuple[float, ...], peak_velocity: float) -> None:

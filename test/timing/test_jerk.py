@@ -227,3 +227,22 @@ def test_lower_bound_sums_pieces() -> None:
                 + float(min_rest_to_rest_time(0.6, 1.0, 2.0, 5.0)))
     assert rest_to_rest_lower_bound(q, 1.0, 2.0, 5.0) == pytest.approx(expected, rel=1e-15)
     assert rest_to_rest_lower_bound(q[:1], 1.0, 2.0, 5.0) == 0.0
+
+
+@pytest.mark.parametrize(('jerk', 'before'), [(15.0, 1.206), (50.0, 1.119)])
+def test_nearly_straight_lin_close_to_the_per_joint_bound(jerk: float, before: float) -> None:
+    """A ur5e LIN nearly straight in the joints, the jerk binding: the constant-bound 7-segment law
+    (jerk._constant_bound) keeps it within 5 % of the per-joint 7-segment bound (the filtered
+    optimal profile alone gave ``before`` x the bound: its acceleration peaked below the limit)."""
+    from geodesic_planner.core.transforms import make_transform, so3_exp
+
+    robot = planner('ur5e').robot
+    q0 = np.array([0.3, -1.2, 1.4, -1.5, -1.4, 0.2])
+    T_a = robot.fk(q0)
+    T_b = make_transform(T_a[:3, 3] + np.array([0.11494925, 0.09670748, 0.22096051]),
+                         T_a[:3, :3] @ so3_exp(np.array([0.0, 0.0, -0.528])))
+    path = planner('ur5e').plan(T_a, T_b, start_joints=q0)
+    traj = path.timed(max_jerk=jerk)
+    check_jerk_law(traj, np.full(6, jerk))
+    bound = rest_to_rest_lower_bound(rest_positions(traj), traj.max_velocity, traj.max_acceleration, jerk)
+    assert traj.duration <= 1.05 * bound, traj.duration / bound
