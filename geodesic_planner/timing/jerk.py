@@ -182,7 +182,8 @@ class JerkLimited:
         law, lam = best
         if lam > LOCAL_TRIGGER:     # a local dip the filter cannot follow: slow down near it
             law, lam = _local_passes(fine, best_x, best_beta, best, checker, cap, jmax)
-        if len(law.width) == 1:     # no rest inside: the constant-bound 7-segment laws may be shorter
+        if len(law.width) == 1 and not ps.jumps3.size:
+            # no rest and no breakpoint inside (not a blend): the constant-bound 7-segment laws
             law, lam = _constant_bound(fine, limits, checker, (law, lam))
         # The search compared widths on interpolated derivatives; the law kept is checked exactly.
         lam = checker.stretch(law, exact=True)
