@@ -3,38 +3,31 @@
 - ``joint_line``: the Euclidean metric on the joints; its geodesic is the straight line
   ``q(s) = q_a + s (q_b - q_a)`` (Pilz PTP's path).
 - ``kinetic_energy``: the mass-matrix metric ``<u, v> = u^T M(q) v`` of the URDF's ``<inertial>``
-  elements; its geodesic ``M q'' + C(q, q') q' = 0`` (C: Coriolis and centrifugal terms, gravity
-  left out) is the motion of least kinetic energy between the two configurations (the paper's
-  "minimum kinetic energy" paths, Introduction and section 2). It is solved as a two-point BVP with
-  scipy's solve_bvp from the joint line; M and C q' come from pinocchio (``crba``, ``rnea`` with
-  zero gravity and zero acceleration).
+  elements; the path of least action ``int_0^1 q'^T M(q) q' ds`` (twice the kinetic energy
+  integral at unit duration; the paper's "minimum kinetic energy" paths, Introduction and
+  section 2) between the two configurations, inside the joint limits. It is found by direct
+  minimisation of the discretised action from several starts (:mod:`.least_energy`): a local
+  minimum, never a saddle of the geodesic equation ``M q'' + C(q, q') q' = 0``. M and its
+  derivative come from pinocchio (``crba``, ``computeCoriolisMatrix``), gravity left out.
 
-:func:`action` gives a path's integral of ``q'^T M(q) q'`` over s in [0, 1] (twice its kinetic
-energy integral at unit duration): constant along the kinetic-energy geodesic, and at least as
-large on any other path between the same ends (near them: the geodesic is the local minimiser).
+:func:`action` gives a path's integral of ``q'^T M(q) q'`` over s in [0, 1].
 """
 from __future__ import annotations
 
-import time
 from typing import Protocol
 
 import numpy as np
 
-from .errors import BVPError, RequestError
+from .errors import RequestError
 from .kinematics import Chain
+from .least_energy import LeastEnergyPath, least_energy_path
 from .path import JointPath, check_order, check_s
-from .polynomials import QuinticHermite
 
 __all__ = ['PTP_OPTIONS', 'ConstantMass', 'JointLinePath', 'KineticEnergyPath', 'MassModel', 'UrdfMass',
            'action', 'kinetic_energy_path', 'mass_from_urdf']
 
 #: The ``ptp`` options: the geodesic's metric.
 PTP_OPTIONS = ('kinetic_energy', 'joint_line')
-#: solve_bvp's tolerance and mesh limit for the kinetic-energy geodesic.
-BVP_TOL = 1e-6
-MAX_NODES = 2000
-#: Initial mesh of the BVP.
-INITIAL_NODES = 17
 
 
 class MassModel(Protocol):
@@ -46,6 +39,11 @@ class MassModel(Protocol):
 
     def velocity_terms(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """C(q, v) v: (dof,), (dof,) -> (dof,)."""
+        ...
+
+    def terms(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """At m points (m, dof) each: M(q) (m, dof, dof) and the derivative of v^T M(q) v in q
+        (m, dof), which is 2 C(q, v)^T v."""
         ...
 
 
@@ -60,6 +58,9 @@ class ConstantMass:
 
     def velocity_terms(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         return np.zeros_like(np.asarray(v, dtype=float))
+
+    def terms(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return np.broadcast_to(self.M, (len(q),) + self.M.shape), np.zeros_like(np.asarray(v, dtype=float))
 
 
 class UrdfMass:
@@ -113,6 +114,24 @@ class UrdfMass:
         vf[self._iv] = v
         return np.asarray(self._pin.rnea(self._model, self._data, self._q(q), vf, zero))[self._iv]
 
+    def terms(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        pin, model, data = self._pin, self._model, self._data
+        crba, coriolis = pin.crba, pin.computeCoriolisMatrix
+        m, nv = len(q), model.nv
+        M, C = np.empty((m, nv, nv)), np.empty((m, nv, nv))
+        qf, vf = np.empty((m, self._q0.size)), np.zeros((m, nv))
+        qf[:] = self._q0
+        qf[:, self._iq], vf[:, self._iv] = q, v
+        for k in range(m):                # pinocchio has no batched call: ~5 us a point
+            M[k] = crba(model, data, qf[k])
+            C[k] = coriolis(model, data, qf[k], vf[k])
+        upper = np.triu(np.ones((nv, nv), dtype=bool))
+        M = np.where(upper, M, np.transpose(M, (0, 2, 1)))       # crba fills the upper triangle
+        grad = 2.0 * np.einsum('pji,pj->pi', C, vf)
+        if nv == len(self._iv):
+            return M, grad
+        return M[:, self._iv][:, :, self._iv], grad[:, self._iv]
+
 
 class JointLinePath(JointPath):
     """The straight line in joint space between q_a and q_b (dof,)."""
@@ -142,66 +161,20 @@ class JointLinePath(JointPath):
         return tuple([q] + rest[:order])
 
 
-class KineticEnergyPath(JointPath):
-    """The kinetic-energy geodesic: a quintic Hermite spline through the BVP's mesh (q, q' and the
-    geodesic's q'' at the nodes).
-
-    Attributes:
-        s_nodes, q_nodes, v_nodes, a_nodes: the mesh. solve_ms: the solver's time.
-    """
-
-    def __init__(self, robot: Chain, s: np.ndarray, q: np.ndarray, v: np.ndarray, a: np.ndarray,
-                 solve_ms: float) -> None:
-        self.robot = robot
-        self.s_nodes, self.q_nodes, self.v_nodes, self.a_nodes = s, q, v, a
-        self.solve_ms = solve_ms
-        self._spline = QuinticHermite(s, q, v, a)
-
-    def evaluate(self, s: np.ndarray, order: int = 3) -> tuple[np.ndarray, ...]:
-        return tuple(self._spline(check_s(s), order=check_order(order)))
-
-    def deviation(self, s: np.ndarray) -> np.ndarray:
-        """Zeros: a PTP has no tool geometry to keep."""
-        return np.zeros(check_s(s).size)
-
-
-def _acceleration(mass: MassModel, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """q'' = -M(q)^-1 C(q, q') q' at each column of q, v (dof, m)."""
-    return np.stack([-np.linalg.solve(mass.matrix(q[:, k]), mass.velocity_terms(q[:, k], v[:, k]))
-                     for k in range(q.shape[1])], axis=1)
+#: The kinetic-energy PTP's path (a polynomial per joint, :mod:`.least_energy`).
+KineticEnergyPath = LeastEnergyPath
 
 
 def kinetic_energy_path(robot: Chain, mass: MassModel, q_a: np.ndarray, q_b: np.ndarray) -> KineticEnergyPath:
-    """The geodesic of the mass-matrix metric from q_a to q_b (dof,), from the joint line.
+    """The path of least action of the mass-matrix metric from q_a to q_b (dof,), inside the joint
+    limits (:func:`.least_energy.least_energy_path`).
 
     Raises:
-        BVPError: solve_bvp does not converge (its message).
+        BVPError: the descent diverged (NaN from the mass model).
     """
     q_a = robot.check_joints(q_a, 'start joints')
     q_b = robot.check_joints(q_b, 'goal joints')
-    n = robot.dof
-    s = np.linspace(0.0, 1.0, INITIAL_NODES)
-    y0 = np.concatenate([(q_a + s[:, None] * (q_b - q_a)).T, np.repeat((q_b - q_a)[:, None], s.size, axis=1)])
-
-    def fun(_s: np.ndarray, y: np.ndarray) -> np.ndarray:
-        return np.concatenate([y[n:], _acceleration(mass, y[:n], y[n:])])
-
-    def bc(ya: np.ndarray, yb: np.ndarray) -> np.ndarray:
-        return np.concatenate([ya[:n] - q_a, yb[:n] - q_b])
-
-    t0 = time.perf_counter()
-    if np.allclose(q_a, q_b, rtol=0.0, atol=1e-12):
-        sol_s, y = s, y0
-    else:
-        from scipy.integrate import solve_bvp   # on first use: 0.3 s less start-up where nothing is planned
-        sol = solve_bvp(fun, bc, s, y0, tol=BVP_TOL, max_nodes=MAX_NODES)
-        if not sol.success:
-            raise BVPError(f'kinetic_energy: the geodesic between the two configurations did not converge '
-                           f'({sol.message})')
-        sol_s, y = sol.x, sol.y
-    ms = (time.perf_counter() - t0) * 1e3
-    q, v = y[:n], y[n:]
-    return KineticEnergyPath(robot, sol_s, q.T, v.T, _acceleration(mass, q, v).T, ms)
+    return least_energy_path(robot, mass.terms, q_a, q_b)
 
 
 def action(path: JointPath, mass: MassModel, samples: int = 2001) -> float:
