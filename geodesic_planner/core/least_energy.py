@@ -16,14 +16,13 @@ the identity and L-BFGS converge in a few dozen steps.
 The energy has several local minima on whole-range moves (an elbow folds one way or the other; the
 geodesic equation's two-point problem also has saddles between them, where a collocation solver
 can stop). Each descent starts from the joint line or from a perturbation of it
-(:data:`START_SCALE` times the line's metric length, along the first mode, in directions
-:func:`start_directions` chooses); the lowest result is returned. A descent method ends at a local
-minimum unless it starts on a saddle's stable set, which the perturbed starts leave.
+(:func:`start_directions`) on a coarse problem (:data:`COARSE_MODES` modes); the lowest is
+refined on :data:`MODES` modes. A descent method ends at a local minimum unless it starts on a
+saddle's stable set, which the perturbed starts leave.
 
-Joint limits: a descent that leaves them is repeated with a quadratic penalty on the excess (dense
-grid, increasing weight), then the path is pulled back towards the joint line (inside the limits,
-the box being convex) by the least amount that makes it exact: a constrained minimum within the
-penalty's resolution.
+Joint limits: where a descent's path nears them, SLSQP continues with the limits as linear
+constraints on a grid; then the path is pulled towards the joint line (inside the limits, the box
+being convex) by the least factor that keeps it inside at the polynomial's exact extrema.
 """
 from __future__ import annotations
 
@@ -43,8 +42,8 @@ from .path import JointPath, check_order, check_s
 __all__ = ['MODES', 'ActionProblem', 'LeastEnergyPath', 'least_energy_path', 'start_directions']
 
 #: Modes per joint (polynomial degree K + 1), Gauss-Legendre nodes of the action's quadrature.
-MODES = 8
-QUADRATURE = 20
+MODES = 10
+QUADRATURE = 24
 #: The same for the coarse problem every start is descended on.
 COARSE_MODES = 3
 COARSE_NODES = 12
