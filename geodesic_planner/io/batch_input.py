@@ -77,12 +77,21 @@ def _open_regular(path: str) -> Any:  # noqa: ANN401
         raise RequestError(f'cannot read {quoted(path)}: {err.strerror or err}') from err
 
 
-def count_records(path: str, fmt: str) -> int:
+def count_records(path: str, fmt: str, *, strict: bool = False) -> int:
     """How many requests (non-blank lines, or rows) the input holds.
 
+    Args:
+        strict: also decode every line (read every row group) and refuse the first malformed one.
     Raises:
-        RequestError: the file cannot be read.
+        RequestError: the file cannot be read; with ``strict``, a malformed line or row (named).
     """
+    if strict:
+        n = 0
+        for rec in read_records(path, fmt):
+            if rec.problem:
+                raise RequestError(f'{rec.where}: {rec.problem} (--strict: nothing was planned)')
+            n += 1
+        return n
     if fmt == 'parquet':
         return int(_parquet(path).metadata.num_rows)
     n = 0
@@ -137,7 +146,7 @@ def _decode_line(number: int, line: bytes | None) -> Record:
     if line is None:
         return Record(number, problem=f'longer than {MAX_LINE_BYTES} bytes')
     try:
-        data = json.loads(line)
+        data = json.loads(line.rstrip(b'\r\n'))
     except UnicodeDecodeError as err:
         return Record(number, problem=f'not UTF-8 (byte {err.start + 1})')
     except json.JSONDecodeError as err:

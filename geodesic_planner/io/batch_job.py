@@ -174,14 +174,16 @@ def run_job(spec: JobSpec, *, workers: int | None = None, address: str | None = 
         address: an existing Ray cluster's address (``ray.init(address=...)``); None: a local
             instance started for this job and stopped after it.
         resume: go on with the job whose shards ``spec.output`` holds.
-        strict: stop at the first malformed line or row instead of skipping it.
+        strict: refuse an input with a malformed line or row (before planning anything) instead
+            of skipping it.
         on_progress: called with (requests done, total, planned by this run) as rows come in.
         on_skip: called with ('line N' or 'row N', reason) for each malformed one.
     Returns:
         The report.
     Raises:
         RequestError: unreadable input, an unwritable output, a resume of another job.
-        BatchError: a malformed line with ``strict``; Ray cannot be started.
+        RequestError: with ``strict``, a malformed line or row (named).
+        BatchError: Ray cannot be started.
         GeodesicPlannerError: the robot or a scene cannot be loaded.
     """
     if workers is not None and not 1 <= workers <= MAX_WORKERS:
@@ -189,7 +191,7 @@ def run_job(spec: JobSpec, *, workers: int | None = None, address: str | None = 
     if not 1 <= spec.shard_size <= MAX_SHARD_SIZE:
         raise RequestError(f'shard size must be 1 to {MAX_SHARD_SIZE} rows, got {spec.shard_size}')
     fmt = input_format(spec.input, spec.fmt)
-    total = count_records(spec.input, fmt)
+    total = count_records(spec.input, fmt, strict=strict)    # strict: malformed input refused here
     scenes = {name: os.path.abspath(path) for name, path in spec.scenes.items()}
     base_dir = os.path.dirname(os.path.abspath(spec.input))
     context = BatchContext(spec.robot, scenes, base_dir, spec.sample_period, spec.time_limit)
