@@ -146,7 +146,7 @@ def _decode_line(number: int, line: bytes | None) -> Record:
     if line is None:
         return Record(number, problem=f'longer than {MAX_LINE_BYTES} bytes')
     try:
-        data = json.loads(line.rstrip(b'\r\n'))
+        data = json.loads(line.rstrip(b'\r\n').decode('utf-8'))   # not json's guess of UTF-16/32
     except UnicodeDecodeError as err:
         return Record(number, problem=f'not UTF-8 (byte {err.start + 1})')
     except json.JSONDecodeError as err:
