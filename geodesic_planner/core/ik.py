@@ -28,6 +28,10 @@ STAGNATION = 1e-2
 STAGNATION_WINDOW = 10
 #: Largest joint change of one damped least-squares step (rad or m): long steps are shortened.
 DLS_MAX_STEP = 0.5
+#: Newton iterations of :func:`polish`.
+POLISH_ITERATIONS = 20
+#: Candidates of the damped least squares that :func:`polish` tries, nearest the pose first.
+POLISH_CANDIDATES = 3
 #: Gauss-Newton attempt from a given seed before damped least squares: iterations, step bound (rad or m).
 GN_ITERATIONS = 12
 GN_MAX_STEP = 0.5
@@ -300,6 +304,40 @@ def _exact_solution(robot: Chain, T_target: np.ndarray, q: np.ndarray, position_
     return IKSolution(q, True, 0, r, float(dp), float(dr))
 
 
+def polish(robot: Chain, T_target: np.ndarray, q: np.ndarray, position_weight: float = 1.0,
+           orientation_weight: float = 1.0, iterations: int = POLISH_ITERATIONS) -> IKSolution | None:
+    """``q`` (near a solution) moved onto ``T_target`` exactly within the joint limits, or None.
+
+    Minimal-norm Newton steps of the geometric Jacobian on the joints that are free; a joint whose
+    step would leave its limits is held at that limit (active set) and the others take up its
+    part. Arms with 6 or more joints reach a pose that lies on a joint limit this way exactly,
+    where damped least squares clamped at the limit stops short (within the IK tolerance).
+    """
+    lo, hi = robot.lower, robot.upper
+    q = np.clip(np.asarray(q, dtype=float), lo, hi)
+    R_t, p_t = T_target[:3, :3], T_target[:3, 3]
+    for _ in range(iterations):
+        T = robot.fk(q)
+        M = R_t @ T[:3, :3].T
+        e = np.concatenate([p_t - T[:3, 3], 0.5 * np.array([M[2, 1] - M[1, 2], M[0, 2] - M[2, 0],
+                                                             M[1, 0] - M[0, 1]])])
+        if np.abs(e).max() <= 1e-15:
+            break
+        J = robot.jacobian(q)
+        free = np.ones(robot.dof, dtype=bool)
+        step = np.zeros(robot.dof)
+        for _ in range(robot.dof):
+            step = np.zeros(robot.dof)
+            step[free] = np.linalg.lstsq(J[:, free], e, rcond=None)[0]
+            out = free & ((q + step < lo) | (q + step > hi))
+            if not out.any():
+                break
+            q[out] = np.clip(q + step, lo, hi)[out]        # held at the limit it would pass
+            free &= ~out
+        q = np.clip(q + step, lo, hi)
+    return _exact_solution(robot, T_target, q, position_weight, orientation_weight)
+
+
 def solve_ik(
     robot: Chain,
     T_target: np.ndarray,
@@ -358,6 +396,8 @@ def solve_ik(
                                                 residual_tol=0.1 * EXACT_RESIDUAL, max_step=GN_MAX_STEP)
         if res_gn[0] <= EXACT_RESIDUAL:
             gn_sol = _exact_solution(robot, T_target, q_gn[0], position_weight, orientation_weight, q0)
+            if gn_sol is None and robot.dof >= 6:      # just outside a limit: the exact one on it
+                gn_sol = polish(robot, T_target, q_gn[0], position_weight, orientation_weight)
             if gn_sol is not None:
                 return gn_sol
     rng = np.random.default_rng(rng_seed)
@@ -386,6 +426,14 @@ def solve_ik(
             break
     ok = np.array([bool(robot.within_limits(qk, 1e-9)) for qk in qs])
     r = np.array(res_l)
+    if full_task and not np.any(ok & (r <= EXACT_RESIDUAL)):
+        # damped least squares held at a limit stops short of a pose that lies on it: polish the
+        # nearest candidates onto it (active set), exactly or not at all
+        for k in np.argsort(r)[:POLISH_CANDIDATES]:
+            sol = polish(robot, T_target, qs[k], position_weight, orientation_weight)
+            if sol is not None:
+                qs[k], r[k], ok[k] = sol.q, sol.residual, True
+                break
     # Solutions (within the limits and the tolerance) take the turn of each revolute joint nearest
     # the seed; failed ones keep their window, so that a joint stuck at a limit is freed when the
     # result seeds the next solve (the goal IK's continuation).

@@ -10,9 +10,13 @@
    (``geodesic.interpolation_error``). No Newton step is needed: method 'pullback'.
 4. Arms with more than 6 joints (paper metric, ε None or 0): the line + slerp with the least
    joint motion (docs/maths.md#redundant-arms, core/redundant.py): method 'redundant'.
-5. Otherwise (redundant arms with ε > 0, arms that cannot follow the line, the 'position'
-   metric): the geodesic BVP of the metric, solved by collocation
-   from that guess (geodesic.solve_geodesic_bvp): method 'collocation'.
+5. Where steps 3-4 do not apply on such arms (a singular end, a branch the mesh misses, a
+   least-motion solve that fails): the line traced step by step (core/trace.py, method 'trace'),
+   or a refusal naming the singularity, joint limit or reach and where (core/line_route.py): a
+   LIN is exact or refused.
+6. Otherwise (fewer than 6 joints, redundant arms with ε > 0, the 'position' metric): the
+   geodesic BVP of the metric, solved by collocation from that guess
+   (geodesic.solve_geodesic_bvp): method 'collocation'.
 
 ``method='collocation'`` (plan, plan_through) skips steps 2-3: the paper's own route, IK only at the
 two ends, the BVP solved from the straight line in joint space.
@@ -27,20 +31,18 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .cancel import checkpoint
-from .continuation import LineFollow, follow_line
-from .errors import BVPError, LimitError, PathFollowError, RequestError, SingularMetricError
+from .errors import BVPError, RequestError, SingularMetricError
 from .geodesic import (GeodesicEquations, GeodesicPath, SolverReport, collocation_rms, interpolation_error,
                        solve_geodesic_bvp)
 from .ik import IKSolution, nearest_turn, solve_ik
 from .kinematics import Chain
 from .limits import check_joint_limits, check_path_limits
-from .long_way import LONG_WAY_EXCESS, check_long_way, long_way_excess
+from .long_way import check_long_way
 from .metric import DEFAULT_REDUNDANT_EPSILON, Metric
 from .pullback import pulled_back_line
 from .polynomials import QuinticHermite, split_intervals
-from .redundant import LineTask, RedundantEquations
-from .redundant_solve import plan_redundant
-from .trace import line_curve, trace
+from .redundant import RedundantEquations
+from .line_route import LineRoute, exact_end
 from .transforms import check_transform, line_slerp, so3_log
 
 if TYPE_CHECKING:
@@ -88,20 +90,7 @@ def snap_same(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
     return np.array(q_a, dtype=float) if np.abs(q_b - q_a).max() <= SAME_JOINTS else q_b
 
 
-def _other_configuration(robot: Chain, q_end: np.ndarray, q_b: np.ndarray) -> PathFollowError:
-    """The refusal of a LIN to goal joints that the line + slerp from the start does not lead to."""
-    j = int(np.argmax(np.abs(q_end - q_b)))
-    sv = np.linalg.svd(robot.jacobian(q_b), compute_uv=False)
-    why = (' (goal_joints are at a singularity, where the pose does not fix the joints)'
-           if sv[-1] < 1e-2 * sv[0] else '')
-    return PathFollowError(
-        f'the straight line cannot be followed by robot {robot.name!r} to goal_joints: at 100 % of the way '
-        f'it reaches the goal pose in another configuration, joint {robot.joint_names[j]!r} at {q_end[j]:.6g} '
-        f'instead of {q_b[j]:.6g}{why} (a LIN does not change the arm\'s branch; plan a PTP to these joints, or '
-        f'give the goal as a pose); followable fraction 1.0000', fraction=1.0)
-
-
-class GeodesicPlanner:
+class GeodesicPlanner(LineRoute):
     """Plans geodesics of the paper's metric between start and goal poses.
 
     Args:
@@ -163,6 +152,8 @@ class GeodesicPlanner:
         self.check_limits = check_limits
         self.allow_long_way = bool(allow_long_way)
         self._line_memo: tuple[bytes, np.ndarray, np.ndarray, np.ndarray] | None = None
+        #: The last line traced by the goal IK (:meth:`_trace_to`): (start + goal joints' bytes, path).
+        self._trace_memo: tuple[bytes, GeodesicPath] | None = None
 
     # ------------------------------------------------------------------ ends
     def _ik(self, T: np.ndarray, seed: np.ndarray | None, tolerance: float | None,
@@ -174,11 +165,16 @@ class GeodesicPlanner:
 
     def _goal_ik(self, T_goal: np.ndarray, q_a: np.ndarray, tolerance: float | None) -> IKSolution:
         """Goal IK on the start's branch: seeded with the start joints; if that seed alone does
-        not reach the goal, follow the straight line + slerp from the start pose in small steps
-        (continuation) before falling back to random restarts."""
+        not reach the goal, the line + slerp from the start pose is followed to it (line route:
+        traced exactly, :meth:`_trace_to`; else in small IK steps) before random restarts."""
         first = self._ik(T_goal, q_a, tolerance, restarts=0, raise_on_failure=False)
-        if first.success:
+        if first.success and (not self._line_route() or exact_end(first)):
             return first
+        if self._line_route():
+            found = self._trace_to(T_goal, q_a)
+            if found is not None:
+                return found
+            return self._ik(T_goal, q_a, tolerance)
         T_a = self.robot.fk(q_a)
         q = q_a
         for T in line_slerp(T_a, T_goal, np.linspace(0.0, 1.0, GOAL_CONTINUATION_STEPS + 1)[1:-1]):
@@ -228,6 +224,10 @@ class GeodesicPlanner:
                 ik_b = self._goal_ik(T_b, q_a, tolerance)
             q_b = ik_b.q
         q_a = np.array(q_a, dtype=float)
+        if self._line_route():
+            for ik, end in ((ik_a, 'start'), (ik_b, 'goal')):
+                if ik is not None:
+                    self._check_exact_end(ik, end)
         return q_a, snap_same(q_a, q_b), ik_a, ik_b
 
     # ------------------------------------------------------------------ guess
@@ -322,92 +322,20 @@ class GeodesicPlanner:
             check_path_limits(self.robot, path)
         return path
 
-    def _line_route(self) -> bool:
-        """True where a plan between two poses is the tool's line + slerp or a refusal (the promise
-        of a LIN): the paper's metric on 6 joints with ε = 0, and beyond 6 joints with ε None or 0."""
-        return self._line_is_geodesic() or self.redundant is not None
-
-    def _solve_line(self, q_a: np.ndarray, q_b: np.ndarray, ik_a: IKSolution | None, ik_b: IKSolution | None,
-                    t0: float) -> GeodesicPath:
-        """The line + slerp from q_a, exactly, or the refusal that says why and where.
-
-        Beyond 6 joints the least-motion path (redundant_solve) where it is found inside the limits;
-        on 6 joints the pull-back at a mesh (the fast route) where the metric is regular at both ends
-        and the mesh finds one branch. Otherwise the line is traced step by step (core/trace.py),
-        which either follows it to the end or names the singularity, joint limit or reach where it
-        stops: never a path off the line, and never the general solver's words.
-        """
-        deadline = None if self.time_limit is None else t0 + self.time_limit
-        line_task = LineTask(*self._task_line(q_a, q_b))
-        if self.redundant is not None:
-            try:
-                path = plan_redundant(self.redundant, line_task, q_a, q_b, ik_a, ik_b, t0=t0,
-                                      path_tolerance=self.path_tolerance, max_nodes=self.max_nodes,
-                                      time_limit=self.time_limit,
-                                      check_limits=self._path_limits if self.check_limits else None)
-            except LimitError:
-                path = None          # the least-motion path leaves a limit: the trace may stay inside
-            if path is not None:
-                return path
-        else:
-            path = self._pullback_route(q_a, q_b, ik_a, ik_b, t0)
-            if path is not None:
-                return path
-        goal_joints = None if ik_b is not None else q_b
-        path, error = self._trace(line_task, q_a, goal_joints, ik_a, ik_b, t0, deadline)
-        w = line_task.w_body
-        if path is None and (goal_joints is not None or self.allow_long_way) and np.linalg.norm(w) > 1e-9:
-            # the slerp the long way round (the tool turns by 2π − |w| the other way): a joint goal
-            # asks for it, or allow_long_way permits it
-            long = LineTask(line_task.T_a, line_task.T_b, w - 2.0 * np.pi * w / np.linalg.norm(w))
-            path = self._trace(long, q_a, goal_joints, ik_a, ik_b, t0, deadline)[0]
-        if path is None:
-            assert error is not None
-            raise error
-        if ik_b is not None:
-            if not self.allow_long_way:
-                check_long_way(self.robot, q_a, path.q_goal, 'the goal pose, along the straight line,')
-            path.ik_goal = dataclasses.replace(ik_b, q=path.q_goal)
-        if self.check_limits:
-            check_path_limits(self.robot, path)
-        return path
-
-    def _trace(self, task: LineTask, q_a: np.ndarray, goal_joints: np.ndarray | None, ik_a: IKSolution | None,
-               ik_b: IKSolution | None, t0: float, deadline: float | None
-               ) -> tuple[GeodesicPath, None] | tuple[None, PathFollowError]:
-        """The line ``task`` traced from q_a (core/trace.py), ending at ``goal_joints`` if given."""
-        result = trace(self.robot, line_curve(task.poses, task.twist), q_a, metric=self.metric,
-                       tolerance=self.path_tolerance, t0=t0, deadline=deadline, ik_start=ik_a, ik_goal=ik_b,
-                       q_end=goal_joints)
-        if result.path is None:
-            assert result.error is not None
-            return None, result.error
-        if goal_joints is not None and not np.array_equal(result.path.q_goal, goal_joints):
-            return None, _other_configuration(self.robot, result.path.q_goal, goal_joints)
-        return result.path, None
-
     def _pullback_route(self, q_a: np.ndarray, q_b: np.ndarray, ik_a: IKSolution | None,
                         ik_b: IKSolution | None, t0: float) -> GeodesicPath | None:
-        """6 joints: the pulled-back line verified against the geodesic equations at a mesh (seeded
-        by the line followed by continuation where the mesh seeds miss the branch), or None."""
+        """6 joints: the pulled-back line verified against the geodesic equations at a mesh, where
+        the metric is regular at both ends and the mesh's seeds find one branch; else None (the
+        line is then traced, core/trace.py)."""
         try:
             self.metric.check_regular(self.robot, np.stack([q_a, q_b]), ['the start', 'the goal'])
         except SingularMetricError:
             return None                       # the trace starts or ends at a singularity
         s = np.linspace(0.0, 1.0, self.nodes)
         q_g, v_g, exact = self.initial_guess(q_a, q_b, s)
-        follow = None
         if not exact:
-            follow = self._follow_line(q_a, q_b)
-            if follow.error is not None or not self._reaches(follow.q[-1], q_a, q_b, ik_b is not None):
-                return None
-            if ik_b is not None:     # a goal pose: the configuration the line leads to
-                q_b = snap_same(q_a, follow.q[-1])
-                ik_b = dataclasses.replace(ik_b, q=q_b)
-            q_g, v_g, exact = self.initial_guess(q_a, q_b, s, follow.seeds(s), on_branch=True)
-            if not exact:
-                return None
-        path = self._pullback_path(q_a, q_b, s, q_g, v_g, ik_a, ik_b, t0, follow)
+            return None
+        path = self._pullback_path(q_a, q_b, s, q_g, v_g, ik_a, ik_b, t0)
         if path is not None and self.check_limits:
             check_path_limits(self.robot, path)
         return path
@@ -415,39 +343,16 @@ class GeodesicPlanner:
     def _path_limits(self, path: GeodesicPath) -> None:
         check_path_limits(self.robot, path)
 
-    def _line_is_geodesic(self) -> bool:
-        """True where the geodesic between two poses is the line + slerp whenever it can be
-        followed: the paper's metric without the ε term, on an arm that can hold any pose (6 or
-        more joints; with fewer, the line + slerp is generally out of reach and the geodesic bows
-        off it, as on the RRPP)."""
-        return self.metric.kind == 'paper' and self.metric.epsilon == 0.0 and self.robot.dof >= 6
-
-    def _reaches(self, q_end: np.ndarray, q_a: np.ndarray, q_b: np.ndarray, goal_pose: bool) -> bool:
-        """Whether the followed line's end ``q_end`` may be the plan's goal: the given goal
-        joints themselves, or, for a goal pose, a configuration not reached the long way round
-        (unless allowed)."""
-        if not goal_pose:
-            return bool(np.abs(q_end - q_b).max() <= 1e-6)
-        return self.allow_long_way or bool(long_way_excess(self.robot, q_a, q_end).max() <= LONG_WAY_EXCESS)
-
-    def _follow_line(self, q_a: np.ndarray, q_b: np.ndarray) -> LineFollow:
-        """The line + slerp from FK(q_a) to FK(q_b), followed from q_a by continuation."""
-        T_a, T_b, w_body = self._task_line(q_a, q_b)
-        return follow_line(self.robot, q_a, T_a, T_b, w_body,
-                           position_weight=self.metric.position_weight,
-                           orientation_weight=self.metric.effective_orientation_weight or 1.0)
-
     def _pullback_path(self, q_a: np.ndarray, q_b: np.ndarray, s: np.ndarray, q: np.ndarray,
                        v: np.ndarray, ik_a: IKSolution | None, ik_b: IKSolution | None,
-                       t0: float, follow: LineFollow | None = None) -> GeodesicPath | None:
+                       t0: float) -> GeodesicPath | None:
         """The geodesic as the exact pulled-back task-space geodesic, or None to fall back.
 
         The nodes (IK of line + slerp, q' and q'' = the geodesic equations' value) lie on the
         geodesic to IK precision, so no Newton step is needed: the mesh is refined until the
         quintic Hermite path through them is within ``path_tolerance`` of the geodesic between
         nodes (error ~ h⁶, so each interval is split once into the number of parts it needs).
-        The new nodes are seeded from the spline, or from ``follow`` (the line followed by
-        continuation) where the mesh seeds had missed the branch.
+        The new nodes are seeded from the spline.
         """
         eq = self.equations
         deadline = None if self.time_limit is None else time.perf_counter() + self.time_limit
@@ -472,8 +377,8 @@ class GeodesicPlanner:
             if s.size + int(parts.sum()) - parts.size > self.max_nodes:
                 return None
             s_new = split_intervals(s, parts)
-            seeds = spline(s_new, order=0)[0] if follow is None else follow.seeds(s_new)
-            q, v, exact = self.initial_guess(q_a, q_b, s_new, seeds, on_branch=follow is not None)
+            seeds = spline(s_new, order=0)[0]
+            q, v, exact = self.initial_guess(q_a, q_b, s_new, seeds)
             s = s_new
             if not exact:
                 return None
@@ -556,8 +461,9 @@ class GeodesicPlanner:
             q_next = snap_same(q_prev, ik_b.q)
             piece = self._solve(q_prev, q_next, ik_a if i == 1 else None, ik_b, time.perf_counter(), method)
             pieces.append(piece)
-            # A redundant arm's piece chooses its own goal configuration (docs/maths.md#redundant-arms).
-            q_prev = piece.q_goal if piece.solver.method == 'redundant' else q_next
+            # A redundant arm's piece (and a traced line) chooses its own goal configuration
+            # (docs/maths.md#redundant-arms); elsewhere q_goal is q_next.
+            q_prev = piece.q_goal
         path = PiecewiseGeodesicPath(pieces, (time.perf_counter() - t0) * 1e3)
         if not np.any(radii > 0.0) or len(path.pieces) < 2:
             return path

@@ -349,24 +349,28 @@ def redundant_path(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b:
 def plan_redundant(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np.ndarray,
                    ik_a: IKSolution | None, ik_b: IKSolution | None, *, t0: float, path_tolerance: float,
                    max_nodes: int, time_limit: float | None,
-                   check_limits: Callable[[GeodesicPath], None] | None) -> GeodesicPath | None:
+                   check_limits: Callable[[GeodesicPath], None] | None, seeded: bool = True,
+                   seeds: LineFollow | None = None) -> GeodesicPath | None:
     """The planner's least-motion path (more than 6 joints), or None when it cannot be found.
 
     To a goal pose (``ik_b`` given) the goal configuration is free (transversality); if that path
     leaves the joint limits (``check_limits`` raises LimitError), the IK's goal q_b is kept instead,
     whose LimitError propagates. Each is solved from the straight joint line first; where that
     fails (near a singularity the iterations can wander off), from the line followed by
-    continuation (``continuation.follow_line``), when that reaches the goal pose.
+    continuation (``continuation.follow_line``), when that reaches the goal pose (``seeded``; the
+    planner passes False: its own fallback traces the line, core/trace.py). With ``seeds`` (the
+    line already followed, e.g. traced) only the solves started from them are tried.
 
     Raises:
         BVPError: the time limit ran out; LimitError: see above.
     """
     deadline = None if time_limit is None else time.perf_counter() + time_limit
-    followed: list[LineFollow | None] = []
+    followed: list[LineFollow | None] = [] if seeds is None else [seeds]
+    tries = (True,) if seeds is not None else (False, True) if seeded else (False,)
     for free_end in (True, False) if ik_b is not None else (False,):
-        for seeded in (False, True):
+        for with_follow in tries:
             follow = None
-            if seeded:
+            if with_follow:
                 if not followed:
                     line = follow_line(eq.robot, q_a, task.T_a, task.T_b, task.w_body,
                                        position_weight=eq.metric.position_weight,

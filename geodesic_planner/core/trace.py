@@ -45,7 +45,7 @@ from .kinematics import Chain
 from .limits import LIMIT_SLACK, line_limit_error
 from .metric import Metric
 from .polynomials import QuinticHermite
-from .redundant import RedundantEquations, pose_residual, skew_vee
+from .redundant import RedundantEquations
 
 #: First step and largest step, fractions of the curve.
 INITIAL_STEP = 1.0 / 32.0
@@ -76,6 +76,10 @@ PROJECT_ITERATIONS = 12
 PROJECT_TOL = 1e-13
 #: Smallest singular value of J, relative to its largest, under which a stop is a singularity.
 SINGULAR_RATIO = 1e-2
+#: The trace stops at a node whose smallest singular value is below this fraction of the largest
+#: and falling: the curve runs into a singularity there (a start near one that it moves away from
+#: is followed).
+SINGULAR_STOP = 1e-5
 #: A step whose midpoint's smallest singular value is below this fraction of both ends' (and
 #: below SINGULAR_RATIO of the largest) stepped over a singular-value dip: it is shortened.
 DIP_FRACTION = 0.5
@@ -83,6 +87,10 @@ DIP_FRACTION = 0.5
 #: self-motion pushes it back, and how fast at the limit (half-ranges per curve).
 LIMIT_MARGIN = 0.8
 LIMIT_PUSH = 4.0
+#: Beyond 6 joints: corrections of a node's self-motion per step (see _advance).
+CORRECTIONS = 2
+#: Steps computed together (batched): accepted in order while they pass.
+BATCH = 6
 #: Interior points of a step where the tool is checked against the curve.
 CHECK_POINTS = np.array([0.25, 0.5, 0.75])
 #: Points of a step where the joints are checked against their limits.
@@ -161,58 +169,80 @@ class _Flow:
         dg = np.where(self.finite, -3.0 * LIMIT_PUSH * over**2 / (1.0 - LIMIT_MARGIN), 0.0)
         return g, dg
 
-    def jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        X, T = self.robot.generators(q[None])
-        return X, T, RedundantEquations.jacobian(X, T)[0]
+    def frames(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """X, T (``robot.generators``) and the geometric Jacobians at q (k, dof)."""
+        X, T = self.robot.generators(q)
+        return X, T, RedundantEquations.jacobian(X, T)
 
-    def node(self, s: float, q: np.ndarray, X: np.ndarray, T: np.ndarray, J: np.ndarray) -> _Node:
-        """q' = F(q, s) = J⁺ V + P g and q'' = dF[q'] + ∂F/∂s at q (module docstring)."""
+    def nodes(self, s: np.ndarray, q: np.ndarray, X: np.ndarray, T: np.ndarray, J: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """q' = F(q, s) = J⁺ V + P g and q'' = dF[q'] + ∂F/∂s at the rows of q (k, dof) (module
+        docstring), the Jacobian's smallest and largest singular values, and whether ``J q' = V``
+        holds (where V leaves J's range, at a singular configuration, no finite q' does it)."""
         sv = np.linalg.svd(J, compute_uv=False)
-        ss = np.array([s])
-        V, dV = self.curve.twist(ss)[0], self.curve.twist_rate(ss)[0]
+        V, dV = self.curve.twist(s), self.curve.twist_rate(s)
         if not self.redundant:
             # 6 joints: J square, q' = J⁻¹ V and J q'' = V' − J̇ q' (solved with J itself, whose
             # condition number is the square root of J Jᵀ's: near a singular start that matters)
-            v = np.linalg.solve(J, V)
-            a = np.linalg.solve(J, dV - RedundantEquations.velocity_term(X, T, v[None])[0])
+            v = np.linalg.solve(J, V[..., None])[..., 0]
+            a = np.linalg.solve(J, (dV - RedundantEquations.velocity_term(X, T, v))[..., None])[..., 0]
         else:
-            A = J @ J.T
+            Jt = np.swapaxes(J, 1, 2)
+            A = J @ Jt
             g, dgdq = self.push(q)
-            y, z = np.linalg.solve(A, np.stack([V, J @ g], axis=1)).T
-            v = J.T @ (y - z) + g
-            dJ = RedundantEquations.rate(X, T, v[None])[0]          # dJ[v], (6, dof)
+            yz = np.linalg.solve(A, np.stack([V, np.einsum('kij,kj->ki', J, g)], axis=2))
+            y, z = yz[..., 0], yz[..., 1]
+            v = np.einsum('kji,kj->ki', J, y - z) + g
+            dJ = RedundantEquations.rate(X, T, v)                  # dJ[v], (k, 6, dof)
             dg = dgdq * v
             # d(J⁺ V) = dJᵀ y + Jᵀ dy, dy = A⁻¹ (V' − (dJ Jᵀ + J dJᵀ) y); d(P g) = dg − dJᵀ z − Jᵀ dz,
             # dz = A⁻¹ (dJ g + J dg − (dJ Jᵀ + J dJᵀ) z)
-            dJJ = dJ @ J.T
-            sym = dJJ + dJJ.T
-            rhs = np.stack([dV - sym @ y, dJ @ g + J @ dg - sym @ z], axis=1)
-            dy, dz = np.linalg.solve(A, rhs).T
-            a = dJ.T @ (y - z) + J.T @ (dy - dz) + dg
-        # J q' = V must hold: where V leaves J's range (a singular configuration) no finite q' does it
-        if not np.linalg.norm(J @ v - V) <= VELOCITY_RESIDUAL * (np.linalg.norm(V) + 1e-300):
-            raise np.linalg.LinAlgError('the tool velocity leaves the range of J')
-        return _Node(s, q, v, a, float(sv[-1]), float(sv[0]))
+            dJJ = dJ @ Jt
+            sym = dJJ + np.swapaxes(dJJ, 1, 2)
+            rhs = np.stack([dV - np.einsum('kij,kj->ki', sym, y),
+                            np.einsum('kij,kj->ki', dJ, g) + np.einsum('kij,kj->ki', J, dg)
+                            - np.einsum('kij,kj->ki', sym, z)], axis=2)
+            d = np.linalg.solve(A, rhs)
+            a = (np.einsum('kji,kj->ki', dJ, y - z) + np.einsum('kji,kj->ki', J, d[..., 0] - d[..., 1]) + dg)
+        r = np.einsum('kij,kj->ki', J, v) - V
+        ok = np.sqrt(np.sum(r * r, axis=1)) <= VELOCITY_RESIDUAL * (np.sqrt(np.sum(V * V, axis=1)) + 1e-300)
+        return v, a, sv[:, -1], sv[:, 0], ok & np.all(np.isfinite(v), axis=1) & np.all(np.isfinite(a), axis=1)
 
-    def project(self, q: np.ndarray, target: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-        """q moved onto the pose ``target`` (4, 4) by minimal-norm Newton steps, with X, T, J there;
-        None when it does not converge."""
+    def project(self, q: np.ndarray, targets: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The rows of q (k, dof) moved onto their poses ``targets`` (k, 4, 4) by minimal-norm Newton
+        steps: (q, X, T, J there, converged (k,))."""
         q = q.copy()
+        live = np.ones(q.shape[0], dtype=bool)
         for _ in range(PROJECT_ITERATIONS):
-            X, T, J = self.jacobian(q)
-            e = pose_residual(T, target[None])[0]
-            if not np.all(np.isfinite(e)):
-                return None
-            if float(np.abs(e).max()) <= PROJECT_TOL:
-                return q, X, T, J
+            X, T, J = self.frames(q)
+            e = _residual(T, targets)
+            err = np.abs(e).max(axis=1)
+            live &= np.isfinite(err)
+            todo = live & (err > PROJECT_TOL)
+            if not todo.any():
+                break
+            Jt = np.swapaxes(J[todo], 1, 2)
             try:
-                q = q + J.T @ np.linalg.solve(J @ J.T, e)
+                q[todo] += np.einsum('kij,kj->ki', Jt, np.linalg.solve(J[todo] @ Jt, e[todo][..., None])[..., 0])
             except np.linalg.LinAlgError:
-                return None
-        X, T, J = self.jacobian(q)
-        e = pose_residual(T, target[None])[0]
-        return (q, X, T, J) if float(np.abs(e).max()) <= 100.0 * PROJECT_TOL else None
+                live &= ~todo
+        else:
+            X, T, J = self.frames(q)
+            err = np.abs(_residual(T, targets)).max(axis=1)
+        return q, X, T, J, live & (err <= 100.0 * PROJECT_TOL)
+
+
+def _residual(T: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Pose errors (k, 6) of T against targets (k, 4, 4): position, and the rotation vector of
+    ``R* Rᵀ`` to first order (base frame)."""
+    M = targets[:, :3, :3] @ np.swapaxes(T[:, :3, :3], 1, 2)
+    out = np.empty((T.shape[0], 6))
+    out[:, :3] = targets[:, :3, 3] - T[:, :3, 3]
+    out[:, 3] = 0.5 * (M[:, 2, 1] - M[:, 1, 2])
+    out[:, 4] = 0.5 * (M[:, 0, 2] - M[:, 2, 0])
+    out[:, 5] = 0.5 * (M[:, 1, 0] - M[:, 0, 1])
+    return out
 
 
 class TracedPath(GeodesicPath):
@@ -264,16 +294,22 @@ def trace(robot: Chain, curve: TaskCurve, q_a: np.ndarray, *, metric: Metric, to
     t0 = time.perf_counter() if t0 is None else t0
     twist = curve.twist(np.linspace(0.0, 1.0, 3))
     size = float(np.abs(twist).max())                  # m (and rad) per curve: the move's size
-    flow = _Flow(robot, curve, max(min(tolerance, RELATIVE_TOLERANCE * size), FLOOR_TOLERANCE))
+    tol = max(min(tolerance, RELATIVE_TOLERANCE * size), FLOOR_TOLERANCE)
+    flow = _Flow(robot, curve, tol)
     q_a = np.asarray(q_a, dtype=float)
-    try:
-        node = flow.node(0.0, q_a, *flow.jacobian(q_a))
-    except np.linalg.LinAlgError:
-        sv = np.linalg.svd(flow.jacobian(q_a)[2], compute_uv=False)
-        return TraceResult(None, _stop_error(robot, curve, _Node(0.0, q_a, q_a, q_a, float(sv[-1]), float(sv[0])),
-                                             rate=True), 1)
+    X, T, J = flow.frames(q_a[None])
+    with np.errstate(all='ignore'):
+        try:
+            v, a, lo, hi, ok = flow.nodes(np.zeros(1), q_a[None], X, T, J)
+        except np.linalg.LinAlgError:           # J exactly singular at the start
+            v, a, lo, hi, ok = _rows(flow, np.zeros(1), q_a[None], X, T, J)
+            lo[0], hi[0] = (float(x) for x in np.linalg.svd(J[0], compute_uv=False)[[-1, 0]])
+    node = _Node(0.0, q_a, v[0], a[0], float(lo[0]), float(hi[0]))
+    if not ok[0]:
+        return TraceResult(None, _stop_error(robot, curve, node, rate=True), 1)
     nodes = [node]
-    h = INITIAL_STEP
+    batch = 1 if flow.redundant else BATCH     # beyond 6 joints each node seeds the next (self-motion)
+    h, k = INITIAL_STEP, batch
     worst = 0.0
     for _ in range(MAX_STEPS):
         if node.s >= 1.0:
@@ -284,12 +320,13 @@ def trace(robot: Chain, curve: TaskCurve, q_a: np.ndarray, *, metric: Metric, to
                            f'at {_percent(node.s)} of the way', status=-2)
         if not np.abs(node.v).max() <= MAX_RATE:
             return TraceResult(None, _stop_error(robot, curve, node, rate=True), len(nodes))
-        h = min(h, 1.0 - node.s)
-        s1 = 1.0 if node.s + h >= 1.0 - 1e-12 else node.s + h
-        h = s1 - node.s
-        step = _step(flow, node, s1, q_end if s1 == 1.0 else None)
-        if isinstance(step, tuple):
-            new, err = step
+        h = min(h, 1.0 - node.s, 0.8 * MAX_JOINT_STEP / max(float(np.abs(node.v).max()), 1e-300))
+        s_new = node.s + h * np.arange(1, k + 1)
+        s_new = s_new[s_new < 1.0 - 1e-12]
+        if s_new.size < k:
+            s_new = np.append(s_new, 1.0)
+        accepted, failure = _advance(flow, node, s_new, q_end)
+        for new, err in accepted:
             crossing = _limit_crossing(robot, node, new)
             if crossing is not None:
                 fraction, j = crossing
@@ -299,12 +336,19 @@ def trace(robot: Chain, curve: TaskCurve, q_a: np.ndarray, *, metric: Metric, to
                                                           curve.name), len(nodes))
             worst = max(worst, err)
             nodes.append(new)
+            if new.sigma < SINGULAR_STOP * new.sigma_max and new.sigma < node.sigma:
+                # heading into a singularity (a fold of the branch): the joint rates grow without bound
+                return TraceResult(None, _stop_error(robot, curve, new), len(nodes))
             node = new
-            grow = 2.0 if err <= 0.0 else min(2.0, 0.9 * (tolerance / err) ** (1.0 / 6.0))
-            h = min(MAX_STEP, h * max(grow, 0.5))
+        if failure is False:                        # the whole batch: longer steps, as the error allows
+            err = max((e for _, e in accepted), default=0.0)
+            h *= 2.0 if err <= 0.0 else min(2.0, max(0.5, 0.9 * (tol / err) ** (1.0 / 6.0)))
+            h = min(h, MAX_STEP)
+            k = batch
             continue
-        # rejected: shorten (by the error's h⁶ law where one was measured)
-        h *= 0.5 if step is None else max(0.1, min(0.5, 0.9 * (tolerance / step) ** (1.0 / 6.0)))
+        # a step failed: shorten (by the error's h⁶ law where one was measured)
+        h *= 0.5 if failure is None else max(0.1, min(0.5, 0.9 * (tol / failure) ** (1.0 / 6.0)))
+        k = max(min(2, batch), min(batch, len(accepted) + 1))
         if h < MIN_STEP:
             return TraceResult(None, _stop_error(robot, curve, node), len(nodes))
     else:
@@ -321,46 +365,90 @@ def trace(robot: Chain, curve: TaskCurve, q_a: np.ndarray, *, metric: Metric, to
     return TraceResult(TracedPath(eq, s, q, v, rep, ik_start, ik_goal, a, spline), None, len(nodes))
 
 
-def _step(flow: _Flow, node: _Node, s1: float, q_end: np.ndarray | None = None
-          ) -> tuple[_Node, float] | float | None:
-    """The node at s1, with the tool's largest distance from the curve inside the step; or that
-    distance (or None: no node, a jump, a singular-value dip) when the step must be shortened.
-    ``q_end``: the goal joints, taken as the last node where the trace ends within SNAP_END of them."""
-    h = s1 - node.s
-    pred = node.q + h * node.v + 0.5 * h * h * node.a
-    u = node.s + h * CHECK_POINTS
-    poses = flow.curve.poses(np.concatenate([[s1], u]))
-    found = flow.project(pred, poses[0])
-    if found is None:
-        return None
-    q1, X, T, J = found
-    if q_end is not None and np.abs(q1 - q_end).max() <= SNAP_END:
-        q1 = np.array(q_end, dtype=float)
-        X, T, J = flow.jacobian(q1)
-    if not np.abs(q1 - node.q).max() <= MAX_JOINT_STEP:
-        return None
-    try:
-        new = flow.node(s1, q1, X, T, J)
-    except np.linalg.LinAlgError:
-        return None
-    if not (np.all(np.isfinite(new.v)) and np.all(np.isfinite(new.a))):
-        return None
-    qm = _between(_CHECK_WEIGHTS, node, new)
-    Tm = flow.robot.fk(qm)
-    want = poses[1:]
-    dp = np.linalg.norm(Tm[:, :3, 3] - want[:, :3, 3], axis=1)
-    dr = np.linalg.norm(skew_vee(Tm[:, :3, :3] @ np.swapaxes(want[:, :3, :3], 1, 2)), axis=1)
-    err = float(np.maximum(dp, dr).max())
-    if not np.isfinite(err):
-        return None
-    if err > flow.tolerance:
-        return err
-    near = SINGULAR_RATIO * max(node.sigma_max, new.sigma_max)
-    if min(node.sigma, new.sigma) < near / DIP_FRACTION:        # near a singularity: look between
-        sigma_mid = float(np.linalg.svd(flow.robot.jacobian(qm[1]), compute_uv=False)[-1])
-        if sigma_mid < DIP_FRACTION * min(node.sigma, new.sigma) and sigma_mid < near:
-            return None
-    return new, err
+def _advance(flow: _Flow, node: _Node, s_new: np.ndarray, q_end: np.ndarray | None
+             ) -> tuple[list[tuple[_Node, float]], float | bool | None]:
+    """The next nodes at s_new (k,), computed together and accepted in order while each step keeps
+    the tool within the tolerance of the curve (FK at CHECK_POINTS), moves no joint by more than
+    MAX_JOINT_STEP and shows no singular-value dip. Returns the accepted (node, tool error) and
+    why the first other one failed: False (none failed), its tool error, or None (no node there,
+    a jump, a dip). ``q_end``: the goal joints, taken as the last node where the trace ends within
+    SNAP_END of them."""
+    d = (s_new - node.s)[:, None]
+    pred = node.q + d * node.v + 0.5 * d * d * node.a
+    m = s_new.size
+    u = np.concatenate([[node.s], s_new])
+    checks = (u[:-1, None] + np.diff(u)[:, None] * CHECK_POINTS).ravel()
+    poses = flow.curve.poses(np.concatenate([s_new, checks]))
+    q, X, T, J, converged = flow.project(pred, poses[:m])
+    if q_end is not None and s_new[-1] == 1.0 and converged[-1] and np.abs(q[-1] - q_end).max() <= SNAP_END:
+        q[-1] = q_end
+        X, T, J = flow.frames(q)
+    with np.errstate(all='ignore'):
+        try:
+            v, a, lo, hi, ok = flow.nodes(s_new, q, X, T, J)
+        except np.linalg.LinAlgError:
+            v, a, lo, hi, ok = _rows(flow, s_new, q, X, T, J)
+        if flow.redundant and m == 1 and ok[0] and converged[0] and q_end is None:
+            # the self-motion of the predicted node is only second order: move it (in J's null
+            # space) onto the flow's two-point Hermite-Obreschkoff step, q1 = q0 + h/2 (v0 + v1)
+            # + h^2/12 (a0 - a1) + O(h^5), so that the nodes' q, q', q'' agree and q''' is smooth
+            for _ in range(CORRECTIONS):
+                h1 = s_new[0] - node.s
+                d = node.q + 0.5 * h1 * (node.v + v[0]) + h1 * h1 / 12.0 * (node.a - a[0]) - q[0]
+                Jr = J[0]
+                d -= Jr.T @ np.linalg.solve(Jr @ Jr.T, Jr @ d)
+                q, X, T, J, converged = flow.project(q + d, poses[:1])
+                v, a, lo, hi, ok = flow.nodes(s_new, q, X, T, J)
+                if not (ok[0] and converged[0]):
+                    break
+    ok &= converged
+    prev_q = np.vstack([node.q[None], q[:-1]])
+    ok &= np.abs(q - prev_q).max(axis=1) <= MAX_JOINT_STEP
+    # the quintic Hermite of every step at its check points, by forward kinematics
+    h = np.diff(u)[:, None, None]
+    P = np.stack([np.vstack([node.q[None], q[:-1]]), h[:, :, 0] * np.vstack([node.v[None], v[:-1]]),
+                  (h * h)[:, :, 0] * np.vstack([node.a[None], a[:-1]]), q, h[:, :, 0] * v,
+                  (h * h)[:, :, 0] * a], axis=1)                     # (m, 6, dof)
+    qm = np.einsum('cj,mjd->mcd', _CHECK_WEIGHTS, P).reshape(-1, q.shape[1])
+    with np.errstate(all='ignore'):
+        Tm = flow.robot.fk(np.where(np.isfinite(qm), qm, 0.0))
+        want = poses[m:]
+        e = _residual(Tm, want)
+        err = np.maximum(np.sqrt(np.sum(e[:, :3] ** 2, axis=1)), np.sqrt(np.sum(e[:, 3:] ** 2, axis=1)))
+    err = np.where(np.isfinite(err), err, np.inf).reshape(m, -1).max(axis=1)
+    sigma = np.concatenate([[node.sigma], lo])
+    sigma_max = np.concatenate([[node.sigma_max], hi])
+    near = np.minimum(sigma[:-1], sigma[1:]) < SINGULAR_RATIO * np.maximum(sigma_max[:-1], sigma_max[1:]) / DIP_FRACTION
+    dip = np.zeros(m, dtype=bool)
+    if near.any():                                      # near a singularity: look between the nodes
+        mids = qm.reshape(m, -1, q.shape[1])[:, CHECK_POINTS.size // 2]
+        with np.errstate(all='ignore'):
+            sm = np.linalg.svd(flow.frames(np.where(np.isfinite(mids), mids, 0.0))[2], compute_uv=False)[:, -1]
+        dip = near & (sm < DIP_FRACTION * np.minimum(sigma[:-1], sigma[1:])) & (
+            sm < SINGULAR_RATIO * np.maximum(sigma_max[:-1], sigma_max[1:]))
+    accepted: list[tuple[_Node, float]] = []
+    for j in range(m):
+        if not ok[j] or dip[j]:
+            return accepted, None
+        if err[j] > flow.tolerance:
+            return accepted, float(err[j])
+        accepted.append((_Node(float(s_new[j]), q[j], v[j], a[j], float(lo[j]), float(hi[j])), float(err[j])))
+    return accepted, False
+
+
+def _rows(flow: _Flow, s: np.ndarray, q: np.ndarray, X: np.ndarray, T: np.ndarray, J: np.ndarray
+          ) -> tuple[np.ndarray, ...]:
+    """:meth:`_Flow.nodes` row by row, a row whose Jacobian is singular marked not ok."""
+    n = q.shape[1]
+    v, a = np.full((s.size, n), np.nan), np.full((s.size, n), np.nan)
+    lo, hi, ok = np.zeros(s.size), np.ones(s.size), np.zeros(s.size, dtype=bool)
+    for j in range(s.size):
+        try:
+            out = flow.nodes(s[j:j + 1], q[j:j + 1], X[j:j + 1], T[j:j + 1], J[j:j + 1])
+        except np.linalg.LinAlgError:
+            continue
+        v[j], a[j], lo[j], hi[j], ok[j] = out[0][0], out[1][0], out[2][0], out[3][0], out[4][0]
+    return v, a, lo, hi, ok
 
 
 def _limit_crossing(robot: Chain, node: _Node, new: _Node) -> tuple[float, int] | None:
@@ -401,9 +489,9 @@ def _stop_error(robot: Chain, curve: TaskCurve, node: _Node, rate: bool = False)
         else:
             where = f'at {_percent(fraction)} of the way ({_where(curve, fraction)}'
         return PathFollowError(
-            f'{curve.name} passes through a singularity of robot {robot.name!r} {where}; smallest singular '
-            f'value {node.sigma:.2g}): no finite joint motion moves the tool along it there, the joints would '
-            f'have to flip; followable fraction {fraction:.4f}', fraction=fraction)
+            f'{curve.name} passes through a singularity of robot {robot.name!r} {where}; the Jacobian\'s '
+            f'smallest singular value {node.sigma:.2g}, {node.sigma / node.sigma_max:.2g} of its largest): the '
+            f'joints would have to flip; followable fraction {fraction:.4f}', fraction=fraction)
     return LineUnreachableError(
         f'{curve.name} cannot be followed by robot {robot.name!r} beyond {_percent(fraction)} of the way '
         f'({_where(curve, fraction)}): no configuration near the start\'s branch reaches the next pose; '

@@ -334,17 +334,26 @@ def test_singular_start_is_refused_at_its_start_and_collocation_plans_when_asked
     assert GeodesicPlanner(robot).plan_joints(q_a, q_b, method='collocation').solver.method == 'collocation'
 
 
-def test_continuation_seeds_a_second_try(monkeypatch):
-    """Where the iterations from the straight joint line wander off (a large move, panda), the
-    line followed by continuation seeds a second try, which plans the exact line."""
-    calls = []
-    follow_line = solve.follow_line
-    monkeypatch.setattr(solve, 'follow_line', lambda *a, **k: calls.append(1) or follow_line(*a, **k))
+def test_a_traced_line_seeds_the_least_motion_solve():
+    """The planner's second try of the least-motion solve starts from the line traced step by step
+    (core/trace.py; it replaced the continuation's seeds): from those seeds alone (a large move,
+    panda) the least-motion path is planned exactly."""
+    import time
+
+    from geodesic_planner.core.continuation import LineFollow
+    from geodesic_planner.core.trace import line_curve, trace
     robot = load_robot('panda')
     q_a = np.array([-1.055544, 0.246749, -1.36684, -1.487687, 1.874364, 1.577671, 1.516279])
     q_b = np.array([-1.568835, 0.860377, -1.969733, -1.947109, 2.226746, 1.260852, 0.906539])
     T_a, T_b = U.panda_fk_batch(np.stack([q_a, q_b]))
-    path = GeodesicPlanner(robot).plan(None, T_b, start_joints=q_a)
-    assert calls and path.solver.method == 'redundant'
+    planner = GeodesicPlanner(robot)
+    task = LineTask.between(robot.fk(q_a), robot.fk(q_b))
+    traced = trace(robot, line_curve(task.poses, task.twist), q_a, metric=planner.metric).path
+    assert traced is not None and traced.solver.method == 'trace'
+    seeds = LineFollow(traced.s_nodes, traced.q_nodes, 1.0, None)
+    path = solve.plan_redundant(planner.redundant, task, q_a, traced.q_goal, None, planner.resolve_ends(
+        None, T_b, start_joints=q_a)[3], t0=time.perf_counter(), path_tolerance=1e-9, max_nodes=2000,
+        time_limit=10.0, check_limits=None, seeded=False, seeds=seeds)
+    assert path is not None and path.solver.method == 'redundant'
     dp, dr = tool_errors(U.panda_fk_batch, path, T_a, T_b)
     assert dp <= EXACT and dr <= EXACT, (dp, dr)
