@@ -232,16 +232,23 @@ def test_malformed_lines_strict_and_a_killed_job_resumed(tmp_path: Path) -> None
     args = [str(path), '-o', str(out), '--robot', 'ur5e', '--workers', '1', '--shard-size', '10']
     job = subprocess.Popen([sys.executable, '-m', 'geodesic_planner.cli.plan', 'batch', *args], cwd=ROOT,
                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    deadline = time.monotonic() + 90
-    while len(list(out.glob('part-*.parquet'))) < 2 and job.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.01)
-    os.kill(job.pid, signal.SIGKILL)
+    def wait_for_shards(n: int) -> None:
+        deadline = time.monotonic() + 90
+        while len(list(out.glob('part-*.parquet'))) < n and job.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+
+    wait_for_shards(1)
+    workers = [pid for pid, cmd in _session(job.pid).items() if cmd.startswith('ray::_Worker')]
+    assert len(workers) == 1, _session(job.pid)
+    os.kill(workers[0], signal.SIGKILL)         # a worker lost: its requests are planned again
+    wait_for_shards(3)
+    os.kill(job.pid, signal.SIGKILL)            # the job itself killed
     job.wait(timeout=30)
     assert job.stderr is not None
     killed_err = job.stderr.read()
     assert 'WARNING: line 5: malformed JSON at column 34' in killed_err and 'skipped' in killed_err, killed_err
     first = {p.name: p.read_bytes() for p in out.glob('part-*.parquet')}
-    assert 2 <= len(first) < 16, sorted(first)        # killed mid-way (16 shards in all)
+    assert 3 <= len(first) < 16, sorted(first)        # killed mid-way (16 shards in all)
     # Ray's processes (GCS, raylet, the worker) share the killed driver's fate; its two agents
     # are killed here (ours: started by the job) rather than waited for
     deadline = time.monotonic() + 30
@@ -267,6 +274,7 @@ def test_malformed_lines_strict_and_a_killed_job_resumed(tmp_path: Path) -> None
     expected_lines = [i + 1 for i, line in enumerate(lines) if line.strip() and i != 4]
     assert [r['index'] for r in rows] == expected_lines     # every request once, in input order
     assert [r['id'] for r in rows] == [r['id'] for r in requests]
+    assert all(r['status'] == 1 for r in rows), [r['message'] for r in rows if r['status'] != 1]
     for row in rows[::15]:
         req = requests[int(row['id'][3:])]
         yaml_req = {'robot': 'ur5e', 'start_joints': req['start_joints'],
