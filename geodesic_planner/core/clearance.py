@@ -27,6 +27,9 @@ __all__ = ['PATH_SPEED_GRID', 'Refined', 'path_speed', 'refine_min_clearance', '
 Exact = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 #: Intervals of the grid of s on which :func:`path_speed` bounds |dq/ds|.
 PATH_SPEED_GRID = 256
+#: Brackets per step of :func:`time_at`, and its resolution relative to the duration (at least 1 s).
+TIME_SPLIT = 64
+TIME_RESOLUTION = 1e-12
 
 
 class Refined(NamedTuple):
@@ -64,15 +67,19 @@ def path_speed(path: Any, intervals: int = PATH_SPEED_GRID) -> np.ndarray:  # no
 
 def time_at(s_of_t: Callable[[np.ndarray], np.ndarray], duration: float, s: np.ndarray) -> np.ndarray:
     """Times (M,) s at which a time law's nondecreasing s(t) reaches the path parameters ``s``
-    (M,): the first such time, by bisection to the precision of floats (0 for s <= s(0),
-    ``duration`` past s(duration))."""
+    (M,): the first such time, within :data:`TIME_RESOLUTION` of the duration (0 for s <= s(0),
+    ``duration`` past s(duration)). A search with :data:`TIME_SPLIT` times per bracket and step,
+    all brackets in one call of ``s_of_t`` (7 calls)."""
     s = np.atleast_1d(np.asarray(s, dtype=float))
     lo, hi = np.zeros_like(s), np.full_like(s, float(duration))
-    for _ in range(64):
-        mid = 0.5 * (lo + hi)
-        before = np.asarray(s_of_t(mid)) < s
-        lo, hi = np.where(before, mid, lo), np.where(before, hi, mid)
-        if np.all(hi - lo <= 4.0 * np.spacing(np.maximum(hi, 1.0))):
+    u = np.linspace(0.0, 1.0, TIME_SPLIT + 1)[1:-1]
+    for _ in range(16):
+        grid = lo[:, None] + (hi - lo)[:, None] * u[None, :]                  # (M, TIME_SPLIT - 1)
+        before = (np.asarray(s_of_t(grid.ravel())).reshape(grid.shape) < s[:, None])
+        k = before.sum(axis=1)                                                # s(t) nondecreasing
+        lo, hi = (np.where(k > 0, grid[np.arange(s.size), np.maximum(k - 1, 0)], lo),
+                  np.where(k < u.size, grid[np.arange(s.size), np.minimum(k, u.size - 1)], hi))
+        if np.all(hi - lo <= TIME_RESOLUTION * max(float(duration), 1.0)):
             break
     return np.where(np.asarray(s_of_t(lo)) >= s, lo, hi)
 

@@ -100,8 +100,8 @@ class MotionClearance:
             time laws do not change it). From ``refine=False``: the smallest bound at the
             configurations checked, until :meth:`refined`.
         pair: the two bodies that come closest (('', '') when nothing is checked).
-        time: where, s (the check's own parameter when no time law is given); fraction: where,
-            as the path parameter s in [0, 1].
+        time: where, s (the check's own parameter when no time law is given; nan until
+            :meth:`refined` when one is); fraction: where, as the path parameter s in [0, 1].
         checks: configurations evaluated.
         closest: the exact distance of ``pair`` there, m (nan until refined): the true minimum
             lies in [min_clearance, closest].
@@ -517,7 +517,8 @@ class CollisionModel:
         if refine:
             return whole()
         n_min, p_min = (int(i) for i in np.unravel_index(int(np.argmin(D_all)), D_all.shape))
-        return MotionClearance(float(D_all[n_min, p_min]), self._pair_names[p_min], when(t_all[n_min]),
+        return MotionClearance(float(D_all[n_min, p_min]), self._pair_names[p_min],
+                               float(t_all[n_min]) if time_of is None else math.nan,
                                float(s_all[n_min]), checks, math.nan, whole)
 
     def _min_clearance(self, positions: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], R: np.ndarray,
