@@ -232,6 +232,11 @@ class CollisionModel:
         return CollisionModel(self.robot, self._robot_bodies, disabled, self.padding, self.objects,
                               exact_meshes=self.exact_meshes)
 
+    @property
+    def robot_bodies(self) -> tuple[Body, ...]:
+        """The robot's own bodies (its links; the scene's objects are not among them)."""
+        return self._robot_bodies
+
     def with_objects(self, objects: Sequence[SceneObject]) -> CollisionModel:
         """The same robot and pairs rules in the scene ``objects`` (replacing the current scene)."""
         return CollisionModel(self.robot, self._robot_bodies, self._disabled, self.padding, objects,
