@@ -24,7 +24,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import threading
 import time
 from collections.abc import Mapping
 from typing import Any
@@ -157,17 +156,9 @@ def plan_row(data: object, context: BatchContext, index: int) -> dict[str, Any]:
     """
     ident = request_id(data, index)
     t0 = time.perf_counter()
-    token = CancelToken()
     try:
-        limit = _time_limit(data, context.time_limit)
-        timer = threading.Timer(limit, token.cancel, args=(f'ran past its time limit of {limit:g} s',))
-        timer.daemon = True
-        timer.start()
-        try:
-            with cancellable(token):
-                row = _plan(data, context, index, ident)
-        finally:
-            timer.cancel()
+        with cancellable(_Deadline(_time_limit(data, context.time_limit))):
+            row = _plan(data, context, index, ident)
     except Cancelled as err:
         return failure_row(index, ident, PlanCode.TIMED_OUT, str(err), -1.0, time.perf_counter() - t0)
     except GeodesicPlannerError as err:
@@ -179,6 +170,22 @@ def plan_row(data: object, context: BatchContext, index: int) -> dict[str, Any]:
                            time.perf_counter() - t0)
     row['planning_time'] = time.perf_counter() - t0
     return row
+
+
+class _Deadline(CancelToken):
+    """A token that cancels itself at the first checkpoint past its time limit (no timer thread:
+    starting one per request cost more than a clock read per checkpoint)."""
+
+    def __init__(self, limit: float) -> None:
+        super().__init__()
+        self.limit = limit
+        self.deadline = time.monotonic() + limit
+
+    @property
+    def cancelled(self) -> bool:
+        if not self._event.is_set() and time.monotonic() > self.deadline:
+            self.cancel(f'ran past its time limit of {self.limit:g} s')
+        return self._event.is_set()
 
 
 def _time_limit(data: object, job_limit: float) -> float:
