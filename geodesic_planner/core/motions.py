@@ -24,7 +24,9 @@ from .geodesic import SolverReport
 from .path import JointPath
 from .piecewise import PiecewiseGeodesicPath
 from .planner import GeodesicPlanner, snap_same
-from .ptp import PTP_OPTIONS, JointLinePath, MassModel, kinetic_energy_path
+from .around import AroundOptions, around_ptp
+from .branches import start_branches
+from .ptp import PTP_OPTIONS, ConstantMass, JointLinePath, MassModel, kinetic_energy_path
 from .transforms import check_transform
 
 __all__ = ['MOTION_TYPES', 'MotionItem', 'plan_item', 'plan_sequence']
@@ -91,8 +93,11 @@ def _finish(path: JointPath, planner: GeodesicPlanner, method: str, t0: float) -
 
 
 def plan_item(planner: GeodesicPlanner, item: MotionItem, q_start: np.ndarray,
-              mass: MassModel | None = None, tolerance: float | None = None) -> JointPath:
-    """One item's path from joints q_start (dof,).
+              mass: MassModel | None = None, tolerance: float | None = None,
+              around: AroundOptions | None = None) -> JointPath:
+    """One item's path from joints q_start (dof,); with ``around``, a PTP whose path collides goes
+    around the obstacles (:func:`.around.around_ptp`; a pose goal tries its IK branches), LIN and
+    CIRC never do.
 
     Raises:
         RequestError: an invalid item; IKError: an unreachable goal; PathFollowError: a line or
@@ -120,12 +125,28 @@ def plan_item(planner: GeodesicPlanner, item: MotionItem, q_start: np.ndarray,
         assert goal is not None
         q_goal = planner._goal_ik(goal, q_start, tolerance).q
     q_goal = snap_same(q_start, q_goal)
-    if item.ptp == 'kinetic_energy' and mass is not None:
-        return _finish(kinetic_energy_path(robot, mass, q_start, q_goal), planner, 'kinetic_energy', t0)
-    line = _finish(JointLinePath(robot, q_start, q_goal), planner, 'joint_line', t0)
-    if item.ptp == 'kinetic_energy':      # said in the plan's notes (the reply's message)
-        line.note = 'PTP kinetic_energy: no mass model (no <inertial> masses), planned as the joint line'  # type: ignore[attr-defined]
-    return line
+    use_mass = item.ptp == 'kinetic_energy' and mass is not None
+
+    def direct(q_b: np.ndarray) -> JointPath:
+        if use_mass:
+            assert mass is not None
+            return kinetic_energy_path(robot, mass, q_start, q_b)
+        return JointLinePath(robot, q_start, q_b)
+
+    if around is None:
+        path = direct(q_goal)
+    else:
+        terms = mass.terms if use_mass else ConstantMass(np.eye(robot.dof)).terms  # type: ignore[union-attr]
+        others = None if goal is None else (lambda: start_branches(planner, goal, q_goal, tolerance))
+        path = around_ptp(around, direct, terms, q_start, q_goal, others,
+                          'mass' if use_mass else 'joint (Euclidean)')
+    method = 'around' if getattr(path, 'note', '').startswith('PTP went around') else (
+        'kinetic_energy' if use_mass else 'joint_line')
+    out = _finish(path, planner, method, t0)
+    if item.ptp == 'kinetic_energy' and mass is None:      # said in the plan's notes (the reply's message)
+        note = 'PTP kinetic_energy: no mass model (no <inertial> masses), planned as the joint line'
+        out.note = '; '.join(n for n in (getattr(out, 'note', ''), note) if n)  # type: ignore[attr-defined]
+    return out
 
 
 def _check_radii(items: Sequence[MotionItem], ends: np.ndarray) -> np.ndarray:
@@ -149,8 +170,11 @@ def _check_radii(items: Sequence[MotionItem], ends: np.ndarray) -> np.ndarray:
 
 def plan_sequence(planner: GeodesicPlanner, items: Sequence[MotionItem], *, start: np.ndarray | None = None,
                   start_joints: object = None, tolerance: float | None = None, start_seed: object = None,
-                  mass: MassModel | None = None) -> JointPath:
+                  mass: MassModel | None = None, around: AroundOptions | None = None) -> JointPath:
     """Plan the items one after the other from the start; blend where an item has a radius.
+
+    ``around``: PTP items whose path collides go around the obstacles (None: they are planned
+    directly and a collision is found, and refused, by the caller's check).
 
     Returns:
         a :class:`~.piecewise.PiecewiseGeodesicPath` (rests at every goal) or, with blends, a
@@ -176,7 +200,7 @@ def plan_sequence(planner: GeodesicPlanner, items: Sequence[MotionItem], *, star
     pieces, ends = [], [planner.robot.fk(q)[:3, 3]]
     for i, item in enumerate(items):
         try:
-            piece = plan_item(planner, item, q, mass, tolerance)
+            piece = plan_item(planner, item, q, mass, tolerance, around)
         except GeodesicPlannerError as err:
             err.args = (f'sequence item {i} ({item.motion}): {err.args[0] if err.args else err}',) + err.args[1:]
             err.item = i          # type: ignore[attr-defined]   # the service's failed_item

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .around import AroundOptions
 from .errors import RequestError
 from .kinematics import Chain
 from .motions import MotionItem, plan_sequence
@@ -47,6 +48,8 @@ class PlanRequest:
     mass: MassModel | None = None
     #: Where the robot came from: a preset's name or a URDF file's path ('' : not known).
     robot_source: str = ''
+    #: PTP items whose path collides plan around the obstacles (None: they are refused).
+    around: AroundOptions | None = None
 
     def check(self) -> None:
         """The checks every source of a request shares (YAML files, the services); the start may
@@ -84,7 +87,7 @@ class PlanRequest:
         if self.items:
             return plan_sequence(planner, self.items, start=self.start,  # type: ignore[return-value]
                                  start_joints=self.start_joints, tolerance=self.tolerance,
-                                 start_seed=start_seed, mass=self.mass)
+                                 start_seed=start_seed, mass=self.mass, around=self.around)
         if self.via:
             return planner.plan_through([self.start, *self.via, self.goal], self.start_joints,
                                         tolerance=self.tolerance, start_seed=start_seed,
