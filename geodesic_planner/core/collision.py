@@ -50,7 +50,7 @@ from .collision_bodies import (
     SceneObject,
     Shape,
     capsule_bodies,
-    object_body,
+    object_bodies,
     pair_key,
     srdf_disabled,
     urdf_bodies,
@@ -156,7 +156,8 @@ class CollisionModel:
         self.objects: tuple[SceneObject, ...] = tuple(objects)
         self._robot_bodies = tuple(bodies)
         self._disabled = dict(disabled)
-        self._bodies = self._robot_bodies + tuple(object_body(o, robot, exact_meshes=exact_meshes) for o in objects)
+        self._bodies = self._robot_bodies + tuple(b for o in objects
+                                                  for b in object_bodies(o, robot, exact_meshes=exact_meshes))
         self.body_names: tuple[str, ...] = tuple(dict.fromkeys(b.name for b in self._robot_bodies))
         self.skipped: dict[tuple[str, str], str] = {}
         ia, ib = [], []
