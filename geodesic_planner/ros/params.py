@@ -285,6 +285,14 @@ _SPECS = (
     ParamSpec('scene', STRING, '',
               'Path to a scene YAML (objects with id, type and dimensions or mesh, pose; README); '
               'the scene services change it at run time. Empty: no objects.'),
+    ParamSpec('ptp_around_obstacles', BOOL, True,
+              'A PTP item of ~/plan_sequence whose path collides goes around the obstacles (OMPL '
+              'RRTConnect, then the least-kinetic-energy path that keeps collision_padding; a pose '
+              'goal tries its IK branches); false: it is refused (INVALID_MOTION_PLAN). LIN and CIRC '
+              'never detour. Needs collision_check.', 'true or false', boolean),
+    ParamSpec('ptp_planning_timeout', DOUBLE, 1.0,
+              'Budget of the search around obstacles per PTP item, s; past it PLANNING_FAILED '
+              '("no collision-free path found in T s").', 'in [0.001, 60]', in_range(1e-3, 60.0)),
     # both nodes
     ParamSpec('velocity_scaling', DOUBLE, 1.0,
               'Time scaling factor f: durations / f, velocities * f, accelerations * f^2.',
@@ -331,7 +339,7 @@ PLANNER_PARAMETERS = ('robot', 'robot_description', 'base_link', 'tip_link', 'jo
                       'max_tool_angular_speed', 'allowed_start_tolerance', 'velocity_scaling',
                       'sample_period', 'frame_id', 'plan_timeout', 'max_queued_requests',
                       'collision_check', 'collision_padding', 'link_radius', 'exact_meshes', 'srdf',
-                      'package_dirs', 'scene')
+                      'package_dirs', 'scene', 'ptp_around_obstacles', 'ptp_planning_timeout')
 PROCESSOR_PARAMETERS = ('input_topic', 'output_topic', 'sample_period', 'velocity_scaling',
                         'max_output_points', 'bag_path', 'storage', 'record_topics')
 

@@ -28,6 +28,7 @@ from nav_msgs.msg import Path
 from trajectory_msgs.msg import JointTrajectory
 
 from .. import GeodesicPlanner, load_robot
+from ..core.around import AroundOptions
 from ..core.blend import BlendedPath
 from ..core.cancel import checkpoint
 from ..core.codes import ERROR_CODES as ERROR_CODES  # the mapping lives in the library (planner_node's doc)
@@ -111,6 +112,15 @@ class PlannerConfig:
     #: built from (reused while they are unchanged, so run-time scene changes are kept)
     collision: Any = None
     collision_key: tuple = ()
+    #: a blocked PTP item goes around the obstacles (needs ``collision``), and the search's budget, s
+    ptp_around_obstacles: bool = True
+    ptp_planning_timeout: float = 1.0
+
+    def around(self) -> AroundOptions | None:
+        """How a blocked PTP item plans around obstacles (None: it is refused)."""
+        if self.collision is None or not self.ptp_around_obstacles:
+            return None
+        return AroundOptions(self.collision, self.ptp_planning_timeout)
 
 
 @dataclass(frozen=True)
@@ -286,7 +296,9 @@ def build_config(values: dict[str, Any], previous: PlannerConfig | None = None) 
         allowed_start_tolerance=float(values['allowed_start_tolerance']),
         default_velocity_factor=lim.default_velocity_factor,
         default_acceleration_factor=lim.default_acceleration_factor,
-        notes=lim.notes, collision=collision, collision_key=collision_key)
+        notes=lim.notes, collision=collision, collision_key=collision_key,
+        ptp_around_obstacles=bool(values['ptp_around_obstacles']),
+        ptp_planning_timeout=float(values['ptp_planning_timeout']))
 
 
 # --------------------------------------------------------------------------- planning

@@ -75,7 +75,8 @@ def sequence_request(config: Any, msg: PlanSequence.Request, mass: MassModel | N
     elif not cv.is_empty_pose(msg.start, 'start'):
         start = cv.pose_stamped_to_matrix(msg.start, config.frame_id, 'start')
     items = [_item(config, it, i) for i, it in enumerate(msg.items)]
-    request = PlanRequest(config.robot, start, None, start_joints, None, items=items, mass=mass)
+    request = PlanRequest(config.robot, start, None, start_joints, None, items=items, mass=mass,
+                          around=config.around())
     return (request, request_factor(msg.velocity_scaling_factor, 'velocity_scaling_factor'),
             request_factor(msg.acceleration_scaling_factor, 'acceleration_scaling_factor'))
 
