@@ -1,6 +1,7 @@
 """``geodesic-plan REQUEST.yaml [--samples N] [-o FILE.json] [--method auto|collocation]
-[--sample-period DT] [--scene SCENE.yaml]``: plan a geodesic from a YAML request, time it, and
-check it against a collision scene as the planner node does.
+[--sample-period DT] [--scene SCENE.yaml [--no-ptp-around] [--ptp-planning-timeout T]]``: plan a
+geodesic from a YAML request, time it, and check it against a collision scene as the planner node
+does (a sequence's blocked PTP items go around the obstacles unless ``--no-ptp-around``).
 
 Every size a user gives is bounded as the nodes bound it: ``--samples`` and the timed trajectory's
 points by :data:`~geodesic_planner.timing.resample.MAX_POINTS` (the planner node's cap on one
@@ -201,7 +202,12 @@ def _parser() -> _Parser:
                         help=f'time between the timed trajectory\'s points, s (default {DEFAULT_SAMPLE_PERIOD:g}, '
                              f'as the nodes); at most {MAX_POINTS} points')
     parser.add_argument('--scene', help='collision scene YAML (as the node\'s scene parameter): refuse a motion '
-                                        'that collides, else report its min_clearance')
+                                        'that collides, else report its min_clearance; a sequence\'s blocked PTP '
+                                        'items go around the obstacles')
+    parser.add_argument('--no-ptp-around', action='store_true',
+                        help='with --scene: refuse a blocked PTP item instead of planning around the obstacles')
+    parser.add_argument('--ptp-planning-timeout', type=_period, default=1.0,
+                        help='with --scene: the search\'s budget around obstacles per PTP item, s (default 1)')
     return parser
 
 
@@ -231,6 +237,9 @@ def plan_main(argv: Sequence[str] | None = None) -> int:
         if args.method is not None:
             req.method = check_method(args.method)
         model = scene_model(req, args.scene) if args.scene else None
+        if model is not None and not args.no_ptp_around:
+            from ..core.around import AroundOptions
+            req.around = AroundOptions(model, args.ptp_planning_timeout)
         path, trajectory, found, branch = plan_in_scene(req, model)
         data = path_to_dict(path, args.samples)
         data['trajectory'] = trajectory_to_dict(trajectory, args.sample_period)
