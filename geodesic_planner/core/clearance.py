@@ -51,18 +51,29 @@ class Refined(NamedTuple):
 def path_speed(path: Any, intervals: int = PATH_SPEED_GRID) -> np.ndarray:  # noqa: ANN401
     """A bound on |dq/ds| over s in [0, 1], per joint, (dof,): rad or m per unit of s.
 
-    The largest |dq/ds| on ``intervals`` uniform intervals plus ``h`` times the largest
-    |d²q/ds²| there (h = 1 / intervals): within an interval |dq/ds| exceeds its value at the
-    nearer end by at most h / 2 times the largest |d²q/ds²| in it; twice that absorbs the change
-    of d²q/ds² within the interval.
+    On a grid of ``intervals`` uniform intervals, with the path's own mesh nodes and the midpoints
+    between them added (``path.s_nodes``, where it has them: a solver puts its nodes densely where
+    the path changes fast, e.g. out of a singular start), the largest over the grid's intervals
+    of the larger end's |dq/ds| plus the interval's length times the larger end's |d²q/ds²|:
+    within an interval |dq/ds| exceeds its value at the nearer end by at most h / 2 times the
+    largest |d²q/ds²| in it; twice that absorbs the change of d²q/ds² within the interval. (A
+    single global h times the largest |d²q/ds²| would take a steep start's d²q/ds² over the
+    whole path.)
 
     Args:
         path: has ``evaluate(s, order)`` -> (q, dq/ds, d²q/ds², ...), each (len(s), dof).
-        intervals: intervals of the grid.
+        intervals: intervals of the uniform grid.
     """
     s = np.linspace(0.0, 1.0, int(intervals) + 1)
+    nodes = getattr(path, 's_nodes', None)
+    if nodes is not None and len(nodes) > 1:
+        nodes = np.asarray(nodes, dtype=float)
+        s = np.unique(np.concatenate([s, nodes, 0.5 * (nodes[:-1] + nodes[1:])]).clip(0.0, 1.0))
     _, d1, d2 = path.evaluate(s, order=2)[:3]
-    return np.abs(np.asarray(d1)).max(axis=0) + np.abs(np.asarray(d2)).max(axis=0) / intervals
+    d1, d2 = np.abs(np.asarray(d1)), np.abs(np.asarray(d2))
+    h = np.diff(s)[:, None]
+    bound = np.maximum(d1[:-1], d1[1:]) + h * np.maximum(d2[:-1], d2[1:])
+    return bound.max(axis=0) if bound.size else d1.max(axis=0)
 
 
 def time_at(s_of_t: Callable[[np.ndarray], np.ndarray], duration: float, s: np.ndarray) -> np.ndarray:

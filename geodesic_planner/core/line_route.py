@@ -64,6 +64,10 @@ def other_configuration(robot: Chain, q_end: np.ndarray, q_b: np.ndarray) -> Pat
         f'give the goal as a pose); followable fraction 1.0000', fraction=1.0)
 
 
+#: Tolerance (m, rad) of a trace that only seeds the least-motion solve beyond 6 joints.
+SEED_TOLERANCE = 1e-5
+
+
 class LineRoute:
     """The line route of :class:`~.planner.GeodesicPlanner` (its base: the attributes below are the
     planner's)."""
@@ -122,16 +126,18 @@ class LineRoute:
             if path is not None:
                 return path
             if traced is None and ik_b is not None:
-                traced, error = self._trace(line_task, q_a, None, ik_a, ik_b, t0, deadline)
+                # a coarse trace: seeds for the least-motion solve, or the refusal with its place
+                traced, error = self._trace(line_task, q_a, None, ik_a, ik_b, t0, deadline, SEED_TOLERANCE)
                 if traced is None:
                     assert error is not None
                     raise error
             if traced is not None:
                 # the least-motion solve again, started from the traced line (its nodes, on one
-                # branch); else the traced line itself
+                # branch); else the line traced exactly
                 seeds = LineFollow(traced.s_nodes, traced.q_nodes, 1.0, None)
                 path = self._least_motion(line_task, q_a, traced.q_goal, ik_a, ik_b, t0, seeds)
-                return path if path is not None else self._finish_line(traced, q_a, ik_a, ik_b, t0)
+                if path is not None:
+                    return path
         else:
             path = self._pullback_route(q_a, q_b, ik_a, ik_b, t0)
             if path is not None:
@@ -177,12 +183,14 @@ class LineRoute:
         return path
 
     def _trace(self, task: LineTask, q_a: np.ndarray, goal_joints: np.ndarray | None, ik_a: IKSolution | None,
-               ik_b: IKSolution | None, t0: float, deadline: float | None
+               ik_b: IKSolution | None, t0: float, deadline: float | None, tolerance: float | None = None
                ) -> tuple[GeodesicPath, None] | tuple[None, PathFollowError]:
-        """The line ``task`` traced from q_a (core/trace.py), ending at ``goal_joints`` if given."""
+        """The line ``task`` traced from q_a (core/trace.py), ending at ``goal_joints`` if given;
+        ``tolerance`` (m, rad): coarser than path_tolerance for seeds only."""
         result = trace(self.robot, line_curve(task.poses, task.twist), q_a, metric=self.metric,
-                       tolerance=self.path_tolerance, t0=t0, deadline=deadline, ik_start=ik_a, ik_goal=ik_b,
-                       q_end=goal_joints)
+                       tolerance=self.path_tolerance if tolerance is None else tolerance, t0=t0,
+                       deadline=deadline, ik_start=ik_a, ik_goal=ik_b, q_end=goal_joints,
+                       seeds_only=tolerance is not None)
         if result.path is None:
             assert result.error is not None
             return None, result.error
@@ -198,8 +206,10 @@ class LineRoute:
         task = LineTask.between(T_a, check_transform(T_goal, 'goal pose'))
         t0 = time.perf_counter()
         deadline = None if self.time_limit is None else t0 + self.time_limit
+        seeds = self.redundant is not None       # beyond 6 joints it seeds the least-motion solve
         result = trace(self.robot, line_curve(task.poses, task.twist), q_a, metric=self.metric,
-                       tolerance=self.path_tolerance, t0=t0, deadline=deadline)
+                       tolerance=SEED_TOLERANCE if seeds else self.path_tolerance, t0=t0, deadline=deadline,
+                       seeds_only=seeds)
         if result.path is None:
             return None
         q_end = result.path.q_goal

@@ -55,8 +55,10 @@ MAX_STEP = 1.0 / 8.0
 MIN_STEP = 1e-11
 #: The most steps (accepted or not) of one trace: bounds its time on any input.
 MAX_STEPS = 4000
-#: Largest joint change in one step, rad or m (more: a jump to another branch).
-MAX_JOINT_STEP = 0.1
+#: Largest joint change in one step, rad or m, and largest Newton correction of a predicted node
+#: (more: a jump to another branch; the prediction's own error is third order in the step).
+MAX_JOINT_STEP = 0.5
+MAX_CORRECTION = 0.05
 #: Largest joint rate, rad (or m) per whole curve: beyond it the joints would have to flip (a
 #: singularity on the way). A singular start reaches about 1e3.
 MAX_RATE = 1e5
@@ -272,7 +274,8 @@ class TraceResult:
 
 def trace(robot: Chain, curve: TaskCurve, q_a: np.ndarray, *, metric: Metric, tolerance: float = 1e-9,
           t0: float | None = None, deadline: float | None = None, ik_start: IKSolution | None = None,
-          ik_goal: IKSolution | None = None, q_end: np.ndarray | None = None) -> TraceResult:
+          ik_goal: IKSolution | None = None, q_end: np.ndarray | None = None, seeds_only: bool = False
+          ) -> TraceResult:
     """Follow ``curve`` from the start joints ``q_a`` (on its first pose) to its end (module docstring).
 
     Args:
@@ -286,6 +289,8 @@ def trace(robot: Chain, curve: TaskCurve, q_a: np.ndarray, *, metric: Metric, to
             :data:`SNAP_END` of them (a goal near a singularity is ill-conditioned in the joints), its
             last node is moved onto them and the last step checked again; otherwise the path ends where
             the curve leads (the caller compares).
+        seeds_only: the path will only seed another solve (beyond 6 joints: no self-motion
+            corrections, steps computed six at a time); with a coarse tolerance.
     Returns:
         TraceResult: the path, or the refusal with the followable fraction and the tool's place.
     Raises:
@@ -294,7 +299,7 @@ def trace(robot: Chain, curve: TaskCurve, q_a: np.ndarray, *, metric: Metric, to
     t0 = time.perf_counter() if t0 is None else t0
     twist = curve.twist(np.linspace(0.0, 1.0, 3))
     size = float(np.abs(twist).max())                  # m (and rad) per curve: the move's size
-    tol = max(min(tolerance, RELATIVE_TOLERANCE * size), FLOOR_TOLERANCE)
+    tol = tolerance if seeds_only else max(min(tolerance, RELATIVE_TOLERANCE * size), FLOOR_TOLERANCE)
     flow = _Flow(robot, curve, tol)
     q_a = np.asarray(q_a, dtype=float)
     X, T, J = flow.frames(q_a[None])
@@ -308,7 +313,8 @@ def trace(robot: Chain, curve: TaskCurve, q_a: np.ndarray, *, metric: Metric, to
     if not ok[0]:
         return TraceResult(None, _stop_error(robot, curve, node, rate=True), 1)
     nodes = [node]
-    batch = 1 if flow.redundant else BATCH     # beyond 6 joints each node seeds the next (self-motion)
+    # beyond 6 joints each node seeds the next (its self-motion is corrected), unless only seeds are asked
+    batch = 1 if flow.redundant and not seeds_only else BATCH
     h, k = INITIAL_STEP, batch
     worst = 0.0
     for _ in range(MAX_STEPS):
@@ -325,7 +331,7 @@ def trace(robot: Chain, curve: TaskCurve, q_a: np.ndarray, *, metric: Metric, to
         s_new = s_new[s_new < 1.0 - 1e-12]
         if s_new.size < k:
             s_new = np.append(s_new, 1.0)
-        accepted, failure = _advance(flow, node, s_new, q_end)
+        accepted, failure = _advance(flow, node, s_new, q_end, correct=not seeds_only)
         for new, err in accepted:
             crossing = _limit_crossing(robot, node, new)
             if crossing is not None:
@@ -365,14 +371,14 @@ def trace(robot: Chain, curve: TaskCurve, q_a: np.ndarray, *, metric: Metric, to
     return TraceResult(TracedPath(eq, s, q, v, rep, ik_start, ik_goal, a, spline), None, len(nodes))
 
 
-def _advance(flow: _Flow, node: _Node, s_new: np.ndarray, q_end: np.ndarray | None
+def _advance(flow: _Flow, node: _Node, s_new: np.ndarray, q_end: np.ndarray | None, correct: bool = True
              ) -> tuple[list[tuple[_Node, float]], float | bool | None]:
     """The next nodes at s_new (k,), computed together and accepted in order while each step keeps
     the tool within the tolerance of the curve (FK at CHECK_POINTS), moves no joint by more than
     MAX_JOINT_STEP and shows no singular-value dip. Returns the accepted (node, tool error) and
     why the first other one failed: False (none failed), its tool error, or None (no node there,
     a jump, a dip). ``q_end``: the goal joints, taken as the last node where the trace ends within
-    SNAP_END of them."""
+    SNAP_END of them. ``correct``: beyond 6 joints, move a single node's self-motion onto the flow."""
     d = (s_new - node.s)[:, None]
     pred = node.q + d * node.v + 0.5 * d * d * node.a
     m = s_new.size
@@ -388,7 +394,7 @@ def _advance(flow: _Flow, node: _Node, s_new: np.ndarray, q_end: np.ndarray | No
             v, a, lo, hi, ok = flow.nodes(s_new, q, X, T, J)
         except np.linalg.LinAlgError:
             v, a, lo, hi, ok = _rows(flow, s_new, q, X, T, J)
-        if flow.redundant and m == 1 and ok[0] and converged[0] and q_end is None:
+        if correct and flow.redundant and m == 1 and ok[0] and converged[0] and q_end is None:
             # the self-motion of the predicted node is only second order: move it (in J's null
             # space) onto the flow's two-point Hermite-Obreschkoff step, q1 = q0 + h/2 (v0 + v1)
             # + h^2/12 (a0 - a1) + O(h^5), so that the nodes' q, q', q'' agree and q''' is smooth
@@ -404,6 +410,7 @@ def _advance(flow: _Flow, node: _Node, s_new: np.ndarray, q_end: np.ndarray | No
     ok &= converged
     prev_q = np.vstack([node.q[None], q[:-1]])
     ok &= np.abs(q - prev_q).max(axis=1) <= MAX_JOINT_STEP
+    ok &= np.abs(q - pred).max(axis=1) <= MAX_CORRECTION
     # the quintic Hermite of every step at its check points, by forward kinematics
     h = np.diff(u)[:, None, None]
     P = np.stack([np.vstack([node.q[None], q[:-1]]), h[:, :, 0] * np.vstack([node.v[None], v[:-1]]),
