@@ -13,17 +13,21 @@ dies (a crash, a killed process, a lost node) or does not come back within its c
 limit plus :data:`GRACE` is replaced: the requests it held are planned again, one at a time,
 and a request that kills a worker twice, or has to be stopped, is a failed row with the reason.
 
-Network. A local instance runs on 127.0.0.1 and never looks up this machine's public address:
-Ray resolves a node address of 127.0.0.1 through a connection towards a public DNS server unless
-``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER`` is 0 (then it keeps the loopback address), so that is set
-for a local instance, before Ray is imported, and for its workers.
+Network. Ray is never left to look up this machine's address: without one it connects towards a
+public DNS server to find it, and it resolves a node address of 127.0.0.1 the same way unless
+``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER`` is 0. A local instance runs on 127.0.0.1 with that variable
+set (before Ray is imported, and so for its workers); a cluster's ``HOST:PORT`` gives the node
+address (:func:`_node_address`: the loopback one for a cluster on this machine, else the source
+address of the route towards HOST).
 """
 from __future__ import annotations
 
 import collections
 import hashlib
+import ipaddress
 import os
 import shutil
+import socket
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Mapping
@@ -148,22 +152,48 @@ def _file_digest(path: str) -> str:
     return digest.hexdigest()
 
 
+def _node_address(address: str) -> str:
+    """This machine's address as the cluster at ``address`` (HOST:PORT) sees it: the loopback
+    address for a cluster on this machine, else the source address of a route towards HOST (a UDP
+    socket's, nothing is sent), so that Ray never looks for it through a public server.
+
+    Raises:
+        RequestError: not HOST:PORT; BatchError: no route to HOST.
+    """
+    host, sep, port = address.rpartition(':')
+    host = host.strip('[]')
+    if not sep or not host or not port.isdigit() or '://' in address:
+        raise RequestError(f'--address must be HOST:PORT (the head\'s address, as ray start --head prints it), '
+                           f'got {quoted(address)}')
+    try:
+        infos = socket.getaddrinfo(host, int(port), type=socket.SOCK_DGRAM)
+        if ipaddress.ip_address(infos[0][4][0]).is_loopback:
+            return '127.0.0.1'
+        with socket.socket(infos[0][0], socket.SOCK_DGRAM) as sock:
+            sock.connect(infos[0][4])
+            return str(sock.getsockname()[0])
+    except (OSError, ValueError, IndexError) as err:
+        raise BatchError(f'cannot reach the Ray cluster at {quoted(address)}: {err}') from err
+
+
 def _start_ray(workers: int | None, address: str | None) -> tuple[Any, bool, str]:
     """(the ray module, whether this call started it, its temporary directory or '')."""
     os.environ.setdefault('RAY_USAGE_STATS_ENABLED', '0')
-    if address is None:
+    node = '127.0.0.1' if address is None else _node_address(address)
+    if node == '127.0.0.1':
         os.environ['RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER'] = '0'
     import ray
     if ray.is_initialized():
         return ray, False, ''
+    from ray._private import ray_constants
+    if node == '127.0.0.1':
+        ray_constants.ENABLE_RAY_CLUSTER = False      # Ray imported before the variable was set
     if address is not None:
         try:
-            ray.init(address=address, include_dashboard=False, configure_logging=False)
+            ray.init(address=address, _node_ip_address=node, include_dashboard=False, configure_logging=False)
         except (ConnectionError, RuntimeError, ValueError) as err:
             raise BatchError(f'cannot join the Ray cluster at {quoted(address)}: {err}') from err
         return ray, True, ''
-    from ray._private import ray_constants
-    ray_constants.ENABLE_RAY_CLUSTER = False      # Ray imported before the variable was set
     temp = tempfile.mkdtemp(prefix='gpray', dir='/tmp')   # short: Ray's socket paths must fit 107 bytes
     try:
         ray.init(num_cpus=workers, _node_ip_address='127.0.0.1', include_dashboard=False, _temp_dir=temp,

@@ -15,6 +15,7 @@ Columns (:data:`SCHEMA`): ``index`` (int64), ``id`` (string), ``status`` (int32,
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -95,7 +96,16 @@ def write_shard(rows: Sequence[Mapping[str, Any]], path: str) -> None:
         pq.write_table(table, tmp, use_dictionary=False)   # 3x faster, smaller: few values repeat
         os.replace(tmp, path)
     except OSError as err:
+        _remove(tmp)
         raise RequestError(f'cannot write {quoted(path)}: {err.strerror or err}') from err
+    except BaseException:
+        _remove(tmp)            # Ctrl-C while writing: no half file left
+        raise
+
+
+def _remove(path: str) -> None:
+    with contextlib.suppress(OSError):
+        os.remove(path)
 
 
 def done_shards(directory: str) -> set[int]:
