@@ -121,7 +121,8 @@ def _parser() -> _Parser:
                         'is the default scene (repeatable)')
     p.add_argument('--workers', type=_bounded(int, 1, MAX_WORKERS), default=None,
                    help=f'Ray workers, 1 to {MAX_WORKERS} (default: this machine\'s cores, or the cluster\'s CPUs)')
-    p.add_argument('--address', help='an existing Ray cluster (ray.init address), instead of a local instance')
+    p.add_argument('--address', metavar='HOST:PORT', help='an existing Ray cluster\'s head (as ray start --head '
+                                                         'prints it), instead of a local instance')
     p.add_argument('--shard-size', type=_bounded(int, 1, MAX_SHARD_SIZE), default=1000,
                    help=f'rows per Parquet shard, 1 to {MAX_SHARD_SIZE} (default 1000)')
     p.add_argument('--sample-period', type=_bounded(float, MIN_SAMPLE_PERIOD, 1.0, ' s'),
@@ -131,7 +132,8 @@ def _parser() -> _Parser:
                    help=f'a request\'s time limit, s (default 60, at most {MAX_TIME_LIMIT:g})')
     p.add_argument('--format', choices=('jsonl', 'parquet'), default='', help='input format (default: from the name)')
     p.add_argument('--resume', action='store_true', help='go on with the job whose shards -o holds')
-    p.add_argument('--strict', action='store_true', help='stop at a malformed line or row (default: skip it)')
+    p.add_argument('--strict', action='store_true', help='refuse an input with a malformed line or row, before '
+                                                         'planning (default: report and skip it)')
     p.add_argument('--bag', help='also write the trajectories to this new rosbag2 (MCAP) directory for replay')
     p.add_argument('-q', '--quiet', action='store_true', help='no progress line')
     return p
