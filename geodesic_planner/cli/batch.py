@@ -130,6 +130,11 @@ def _parser() -> _Parser:
                                                        f'(default {DEFAULT_SAMPLE_PERIOD:g})')
     p.add_argument('--time-limit', type=_bounded(float, 1e-3, MAX_TIME_LIMIT, ' s'), default=60.0,
                    help=f'a request\'s time limit, s (default 60, at most {MAX_TIME_LIMIT:g})')
+    p.add_argument('--ptp-around', action='store_true',
+                   help='in a scene, a sequence\'s blocked PTP items plan around the obstacles (OMPL) instead of '
+                        'being refused; those rows are then not reproducible bit for bit')
+    p.add_argument('--ptp-planning-timeout', type=_bounded(float, 1e-3, 60.0, ' s'), default=1.0,
+                   help='with --ptp-around: the search\'s budget per PTP item, s (default 1, at most 60)')
     p.add_argument('--format', choices=('jsonl', 'parquet'), default='', help='input format (default: from the name)')
     p.add_argument('--resume', action='store_true', help='go on with the job whose shards -o holds')
     p.add_argument('--strict', action='store_true', help='refuse an input with a malformed line or row, before '
@@ -160,7 +165,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f'ERROR: {err}', file=sys.stderr)
         return 2
     spec = JobSpec(args.requests, args.output, args.robot, scenes, args.format, args.shard_size,
-                   args.sample_period, args.time_limit)
+                   args.sample_period, args.time_limit, args.ptp_around, args.ptp_planning_timeout)
     progress = Progress(sys.stderr, quiet=args.quiet)
 
     def skipped(where: str, problem: str) -> None:

@@ -74,6 +74,8 @@ class JobSpec:
         shard_size: requests per shard, 1 to :data:`MAX_SHARD_SIZE`.
         sample_period: time between a trajectory's points, s.
         time_limit: a request's time limit, s.
+        ptp_around: in a scene, blocked PTP items plan around the obstacles (rows then depend on
+            OMPL's random state); ptp_planning_timeout: that search's budget per item, s.
     """
 
     input: str
@@ -84,6 +86,8 @@ class JobSpec:
     shard_size: int = 1000
     sample_period: float = DEFAULT_SAMPLE_PERIOD
     time_limit: float = 60.0
+    ptp_around: bool = False
+    ptp_planning_timeout: float = 1.0
 
 
 @dataclass
@@ -235,7 +239,8 @@ def run_job(spec: JobSpec, *, workers: int | None = None, address: str | None = 
     total = count_records(spec.input, fmt, strict=strict)    # strict: malformed input refused here
     scenes = {name: os.path.abspath(path) for name, path in spec.scenes.items()}
     base_dir = os.path.dirname(os.path.abspath(spec.input))
-    context = BatchContext(spec.robot, scenes, base_dir, spec.sample_period, spec.time_limit)
+    context = BatchContext(spec.robot, scenes, base_dir, spec.sample_period, spec.time_limit, spec.ptp_around,
+                           spec.ptp_planning_timeout)
     context.load()                      # a bad robot or scene is refused before Ray starts
     try:
         os.makedirs(spec.output, exist_ok=True)
@@ -243,7 +248,8 @@ def run_job(spec: JobSpec, *, workers: int | None = None, address: str | None = 
         raise RequestError(f'cannot create {quoted(spec.output)}: {err.strerror or err}') from err
     job = {'input': os.path.abspath(spec.input), 'sha256': _file_digest(spec.input), 'format': fmt,
            'robot': spec.robot, 'scenes': scenes, 'shard_size': spec.shard_size,
-           'sample_period': spec.sample_period, 'time_limit': spec.time_limit, 'version': 1}
+           'sample_period': spec.sample_period, 'time_limit': spec.time_limit, 'ptp_around': spec.ptp_around,
+           'ptp_planning_timeout': spec.ptp_planning_timeout, 'version': 1}
     write_manifest(spec.output, job, resume=resume)
     done = done_shards(spec.output) if resume else set()
     ray, started, temp = _start_ray(workers, address)

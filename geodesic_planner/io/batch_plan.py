@@ -63,6 +63,10 @@ class BatchContext:
         base_dir: directory that relative URDF paths of the requests are read from.
         sample_period: time between a trajectory's points, s.
         time_limit: a request's time limit, s (the plan stops at its next checkpoint after it).
+        ptp_around: in a scene, a sequence's blocked PTP items plan around the obstacles (OMPL,
+            ``core.around``) instead of being refused; such rows depend on OMPL's random state,
+            so they are not reproducible bit for bit (off by default, unlike ``geodesic-plan``).
+        ptp_planning_timeout: the search's budget per PTP item, s.
     """
 
     robot: str = ''
@@ -70,6 +74,8 @@ class BatchContext:
     base_dir: str = '.'
     sample_period: float = DEFAULT_SAMPLE_PERIOD
     time_limit: float = 60.0
+    ptp_around: bool = False
+    ptp_planning_timeout: float = 1.0
     _robots: dict[tuple[str, Any, Any], Chain] = dataclasses.field(default_factory=dict, repr=False)
     _models: dict[tuple[int, str], CollisionModel] = dataclasses.field(default_factory=dict, repr=False)
 
@@ -240,6 +246,9 @@ def _plan(data: object, context: BatchContext, index: int, ident: str) -> dict[s
         if not isinstance(scene, str):
             raise RequestError(f'request: scene must be a scene name, got {scene!r}')
         model = context.model(req.robot, req.robot_source, scene)
+        if context.ptp_around:
+            from ..core.around import AroundOptions
+            req.around = AroundOptions(model, context.ptp_planning_timeout)
     planner = req.planner()
 
     def attempt(q_start: np.ndarray | None) -> tuple[Any, Any]:
