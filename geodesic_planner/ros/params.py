@@ -190,6 +190,16 @@ def positive_array(value: object) -> str | None:
     return None
 
 
+def finite_array(value: object) -> str | None:
+    """An array of finite numbers (empty allowed)."""
+    vals = _array(value)
+    if vals is None or any(_not_number(v) for v in vals):
+        return f'expected an array of numbers, got {value!r}'
+    if not all(math.isfinite(float(v)) for v in vals):
+        return f'every value must be finite, got {[float(v) for v in vals]}'
+    return None
+
+
 def string_array(value: object) -> str | None:
     """An array of strings (empty allowed)."""
     vals = _array(value)
@@ -293,6 +303,37 @@ _SPECS = (
     ParamSpec('ptp_planning_timeout', DOUBLE, 1.0,
               'Budget of the search around obstacles per PTP item, s; past it PLANNING_FAILED '
               '("no collision-free path found in T s").', 'in [0.001, 60]', in_range(1e-3, 60.0)),
+    # planner: point clouds (ros/sensor_maps.py)
+    ParamSpec('point_cloud_topics', STRINGS, [],
+              'sensor_msgs/PointCloud2 topics whose clouds become occupancy octrees in the collision scene, one '
+              'map per topic (each cloud replaces its topic\'s map; the pair is named after the topic). Empty: '
+              'none. Fixed at start.', 'topic names', string_array, read_only=True),
+    ParamSpec('point_cloud_frames', STRINGS, [],
+              'The frame of each sensor of point_cloud_topics (in order): a cloud is used when its frame_id is '
+              'this frame or the base frame, else refused with a warning (no TF). Fixed at start.',
+              'one per topic', string_array, read_only=True),
+    ParamSpec('point_cloud_poses', DOUBLES, [],
+              'Each sensor frame\'s pose in the base frame, 7 values per topic of point_cloud_topics: x y z '
+              '(m) qx qy qz qw (unit quaternion). Fixed at start.', '7 per topic', finite_array, read_only=True),
+    ParamSpec('octree_resolution', DOUBLE, 0.02, 'Voxel side of the point clouds\' occupancy octrees, m.',
+              'in [0.001, 1]', in_range(1e-3, 1.0)),
+    ParamSpec('self_filter_padding', DOUBLE, 0.03,
+              "Points inside the robot's collision bodies grown by this much (at the latest /joint_states) "
+              'are removed from every cloud, m.', 'in [0, 0.5]', in_range(0.0, 0.5)),
+    ParamSpec('max_cloud_points', INTEGER, 1_000_000,
+              'Largest cloud (width x height) accepted; larger ones are refused with a warning.',
+              'integer in [1, 100000000]', integer_in(1, 100_000_000)),
+    ParamSpec('max_cloud_rate', DOUBLE, 10.0,
+              "Most clouds used per second and sensor, Hz; the others are skipped.", 'in [0.001, 1000]',
+              in_range(1e-3, 1e3)),
+    ParamSpec('max_cloud_age', DOUBLE, 1.0,
+              'With point_cloud_topics, every sensor needs a cloud younger than this (time of arrival), s: '
+              'else plans are refused (PLANNING_FAILED), or planned with a warning (stale_clouds warn).',
+              'in [0.001, 86400]', in_range(1e-3, 86400.0)),
+    ParamSpec('stale_clouds', STRING, 'refuse',
+              "What a plan does when a sensor's map is older than max_cloud_age: 'refuse' it, or 'warn' "
+              '(planned against the maps there are, the warning in the log and the reply).', "'refuse' or 'warn'",
+              one_of(('refuse', 'warn'))),
     # both nodes
     ParamSpec('velocity_scaling', DOUBLE, 1.0,
               'Time scaling factor f: durations / f, velocities * f, accelerations * f^2.',
@@ -339,7 +380,9 @@ PLANNER_PARAMETERS = ('robot', 'robot_description', 'base_link', 'tip_link', 'jo
                       'max_tool_angular_speed', 'allowed_start_tolerance', 'velocity_scaling',
                       'sample_period', 'frame_id', 'plan_timeout', 'max_queued_requests',
                       'collision_check', 'collision_padding', 'link_radius', 'exact_meshes', 'srdf',
-                      'package_dirs', 'scene', 'ptp_around_obstacles', 'ptp_planning_timeout')
+                      'package_dirs', 'scene', 'ptp_around_obstacles', 'ptp_planning_timeout',
+                      'point_cloud_topics', 'point_cloud_frames', 'point_cloud_poses', 'octree_resolution',
+                      'self_filter_padding', 'max_cloud_points', 'max_cloud_rate', 'max_cloud_age', 'stale_clouds')
 PROCESSOR_PARAMETERS = ('input_topic', 'output_topic', 'sample_period', 'velocity_scaling',
                         'max_output_points', 'bag_path', 'storage', 'record_topics')
 

@@ -96,6 +96,7 @@ from .path_markers import LatestPathMarkers
 from .plan_log import PlanLog
 from .joint_states import JointStateListener, RateLimitedWarnings
 from .scene_services import SceneServices
+from .sensor_maps import SensorMaps, node_sensors
 from .sequence_service import SequenceService
 from .planning import (CODE_NAMES, ConfigError, Outcome, PlannerConfig, PlanResult, PlanTimeoutError,
                        build_config, compute_plan)
@@ -173,6 +174,14 @@ class GeodesicPlannerNode(params.SchemaNode):
             self, self._update_collision, lambda: self._config.collision if self._config else None,
             lambda: list(self.get_parameter('package_dirs').value or []),
             lambda: self._config.frame_id if self._config else 'base_link')
+        self.sensor_maps = SensorMaps(
+            self, node_sensors(self), self._update_collision,
+            lambda: (c.collision, c.frame_id) if (c := self._config) is not None and c.collision is not None else None,
+            lambda: self.current_joints(self._config.joint_names) if self._config is not None else None,
+            self.warnings)
+        if self.sensor_maps.sensors and not self.get_parameter('collision_check').value:
+            raise ConfigError('point_cloud_topics: the clouds need collision_check true')
+        self.scene.maps = self.sensor_maps
         self.scene.publish_markers()
         services = ', '.join(map(self.resolve_service_name, ('~/plan_trajectory', '~/plan_sequence', '~/plan')))
         c = self._config
@@ -259,6 +268,9 @@ class GeodesicPlannerNode(params.SchemaNode):
         if not ours:
             return SetParametersResult(successful=True)
         reason = params.rejection(ours, PLANNER_PARAMETERS)
+        if reason is None and any(p.name == 'collision_check' and p.value is False for p in ours) \
+                and self.sensor_maps.sensors:
+            reason = 'collision_check: must stay true while point_cloud_topics are configured'
         if reason is None:
             with self._config_lock:
                 try:
@@ -337,12 +349,14 @@ class GeodesicPlannerNode(params.SchemaNode):
         ``check_start``: seed an explicit start's IK with the joint state and check the plan's
         first point against it (PlanTrajectory); False keeps GetPlan's behaviour.
         """
+        stale = ''
         try:
             config = self._config
             if config is None:
                 raise ConfigError(f'no robot model yet: the robot parameter is empty and no URDF has '
                                   f'arrived on {self._description_topic}')
             request, fv, fa = parse(config)
+            stale = self.sensor_maps.check(config.collision)      # StaleMapError: refused
             current_q = self.current_joints(config.joint_names)
             if not check_start and (request.start is not None or request.start_joints is not None):
                 current_q = None
@@ -364,6 +378,9 @@ class GeodesicPlannerNode(params.SchemaNode):
             outcome = Outcome(PlanErrorCode.PLANNING_FAILED, f'internal error: {type(err).__name__}: {err}')
         total_ms = (time.perf_counter() - t0) * 1e3
         result = outcome.result
+        if stale and result is not None:
+            self.warnings.warn('stale clouds', stale)
+            outcome = replace(outcome, message=f'{stale}; {outcome.message}')
         if result is None:
             self.plan_log.flush()
             self.get_logger().error(f'plan failed ({CODE_NAMES.get(outcome.code, outcome.code)}, '
@@ -450,7 +467,7 @@ def main(args: list[str] | None = None) -> int:
             node = GeodesicPlannerNode()
             # a thread per queued request plus three: one always free to take (and refuse) the
             # next request, the parameter services, the /robot_description subscription
-            executor = MultiThreadedExecutor(num_threads=node.queue.depth + 3)
+            executor = MultiThreadedExecutor(num_threads=node.queue.depth + 3 + bool(node.sensor_maps.sensors))
             executor.add_node(node)
             guard = runtime.UniqueNameGuard(node, stop, lambda state: node.status.set(name_check=state))
             node.start_state_thread()
