@@ -198,7 +198,9 @@ def _start_ray(workers: int | None, address: str | None) -> tuple[Any, bool, str
         except (ConnectionError, RuntimeError, ValueError) as err:
             raise BatchError(f'cannot join the Ray cluster at {quoted(address)}: {err}') from err
         return ray, True, ''
-    temp = tempfile.mkdtemp(prefix='gpray', dir='/tmp')   # short: Ray's socket paths must fit 107 bytes
+    # Ray's socket paths under it must fit 107 bytes: $TMPDIR if short, else /tmp
+    base = tempfile.gettempdir()
+    temp = tempfile.mkdtemp(prefix='gpray', dir=base if len(base) <= 40 else '/tmp')
     try:
         ray.init(num_cpus=workers, _node_ip_address='127.0.0.1', include_dashboard=False, _temp_dir=temp,
                  object_store_memory=OBJECT_STORE_BYTES, configure_logging=False, log_to_driver=False)

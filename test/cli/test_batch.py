@@ -11,9 +11,11 @@ from __future__ import annotations
 import copy
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -35,6 +37,8 @@ if not netns.is_loopback_only():
 from geodesic_planner.cli.plan import plan_in_scene, scene_model  # noqa: E402
 from geodesic_planner.core.robots import load_robot  # noqa: E402
 from geodesic_planner.core.transforms import matrix_to_quat  # noqa: E402
+from geodesic_planner.core.errors import RequestError  # noqa: E402
+from geodesic_planner.io.batch_job import JobSpec, run_job  # noqa: E402
 from geodesic_planner.io.batch_output import read_rows  # noqa: E402
 from geodesic_planner.io.requests import parse_request  # noqa: E402
 from geodesic_planner.timing.law import scaled_limits  # noqa: E402
@@ -215,7 +219,7 @@ def _session(sid: int) -> dict[int, str]:
 AGENTS = ('ray::DashboardAgent', 'ray::RuntimeEnvAgent')
 
 
-def test_malformed_lines_strict_and_a_killed_job_resumed(tmp_path: Path) -> None:
+def test_malformed_lines_strict_and_a_killed_job_resumed(tmp_path: Path, request: pytest.FixtureRequest) -> None:
     requests = _lin_requests(100)
     lines = [json.dumps(r) for r in requests]
     lines.insert(4, '{"id": "broken", "motion": "LIN",')          # line 5: malformed JSON
@@ -224,14 +228,17 @@ def test_malformed_lines_strict_and_a_killed_job_resumed(tmp_path: Path) -> None
     path.write_text('\n'.join(lines) + '\n')
     out = tmp_path / 'out'
 
-    strict = _run(str(path), '-o', str(out), '--robot', 'ur5e', '--strict')
-    assert strict.returncode == 1 and strict.stderr.startswith('ERROR: line 5: malformed JSON'), strict.stderr
-    _clean(strict.stderr)
+    spec = JobSpec(str(path), str(out), 'ur5e', shard_size=10)     # refusals before Ray starts: in-process
+    with pytest.raises(RequestError, match=r'^line 5: malformed JSON at column 34: .*--strict: nothing was planned'):
+        run_job(spec, strict=True)
     assert not out.exists()                                         # refused before anything was made
 
     args = [str(path), '-o', str(out), '--robot', 'ur5e', '--workers', '1', '--shard-size', '10']
+    ray_tmp = tempfile.mkdtemp(prefix='gpt', dir='/tmp')      # the killed job's Ray directory, removed here
+    request.addfinalizer(lambda: shutil.rmtree(ray_tmp, ignore_errors=True))
     job = subprocess.Popen([sys.executable, '-m', 'geodesic_planner.cli.plan', 'batch', *args], cwd=ROOT,
-                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                           env={**os.environ, 'TMPDIR': ray_tmp})
     def wait_for_shards(n: int) -> None:
         deadline = time.monotonic() + 90
         while len(list(out.glob('part-*.parquet'))) < n and job.poll() is None and time.monotonic() < deadline:
@@ -259,8 +266,8 @@ def test_malformed_lines_strict_and_a_killed_job_resumed(tmp_path: Path) -> None
         os.kill(pid, signal.SIGKILL)
     assert all(cmd.startswith(AGENTS) for cmd in left.values()), f'outlived the killed job: {left}'
 
-    again = _run(*args)
-    assert again.returncode != 0 and 'holds the results of a job' in again.stderr     # no --resume
+    with pytest.raises(RequestError, match='holds the results of a job: --resume to go on'):
+        run_job(spec)                                               # without --resume
     resumed = _run(*args, '--resume')
     assert resumed.returncode == 0, resumed.stderr
     _clean(resumed.stderr)
