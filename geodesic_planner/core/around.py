@@ -202,8 +202,8 @@ def plan_around(model: CollisionModel, terms: Callable, q_a: np.ndarray, q_b: np
     mass model's M(q) and its derivative, :meth:`~.ptp.MassModel.terms`) near the way OMPL finds:
     :func:`find_way` (its vertex reduction only), then :func:`~.smooth_around.smooth_way`, checked
     continuously. The search ends at ``deadline`` (time.monotonic(); default now + ``timeout``);
-    a way found is smoothed until then, else returned as its polyline (smooth to the third
-    derivative).
+    a way found is smoothed for at most ``timeout`` s more, else returned as its polyline (smooth
+    to the third derivative): the whole plan takes at most twice the budget.
 
     Raises:
         as :func:`find_way` (PlanningFailedError "no collision-free path found in T s").
@@ -213,8 +213,12 @@ def plan_around(model: CollisionModel, terms: Callable, q_a: np.ndarray, q_b: np
     left = end - time.monotonic()
     if left <= 0.0:
         raise PlanningFailedError(f'no collision-free path found in {float(timeout):g} s')
-    way = find_way(model, q_a, q_b, left, seed=seed, simplify=0.0)
-    smoothed = smooth_way(model, terms, way.waypoints, end)
+    try:
+        way = find_way(model, q_a, q_b, left, seed=seed, simplify=0.0)
+    except PlanningFailedError:
+        raise PlanningFailedError(f'no collision-free path found in {float(timeout):g} s') from None
+    # the budget bounds the search; the way found gets as long again to be smoothed
+    smoothed = smooth_way(model, terms, way.waypoints, time.monotonic() + float(timeout))
     return AroundPlan(way, smoothed, (time.perf_counter() - t0) * 1e3)
 
 

@@ -37,9 +37,15 @@ class Contacts:
     grad: np.ndarray
 
 
-def contacts(model: CollisionModel, qs: np.ndarray, below: float) -> Contacts:
+def contacts(model: CollisionModel, qs: np.ndarray, below: float, candidates: np.ndarray | None = None,
+             seen: np.ndarray | None = None) -> Contacts:
     """Every checked pair whose distance is below ``below`` (m) at the configurations qs (N, dof),
-    with the distance's gradient in q."""
+    with the distance's gradient in q.
+
+    ``candidates`` (N, pairs), bool: only these may be below (the others are known not to be);
+    ``seen`` (N, pairs): set to a lower bound of every pair's distance (coal's distance where it
+    was computed, the bounding spheres' elsewhere).
+    """
     robot = model.robot
     qs = np.asarray(qs, dtype=float)
     ia, ib = model._ia, model._ib
@@ -49,7 +55,12 @@ def contacts(model: CollisionModel, qs: np.ndarray, below: float) -> Contacts:
     P, centers = model._poses(qs)
     bound = (np.linalg.norm(centers[:, ia] - centers[:, ib], axis=-1)
              - model._radius[ia] - model._radius[ib])
-    ns, ps = np.nonzero(bound < below)
+    if seen is not None:
+        seen[:] = bound
+    near = bound < below
+    if candidates is not None:
+        near &= candidates
+    ns, ps = np.nonzero(near)
     if ns.size == 0:
         return empty
     bodies, seg = model._bodies, model._segment
@@ -73,6 +84,8 @@ def contacts(model: CollisionModel, qs: np.ndarray, below: float) -> Contacts:
         result.clear()
         d[k] = fn(tf(n, i), tf(n, j), request, result)
         w1[k], w2[k], nv[k] = result.getNearestPoint1(), result.getNearestPoint2(), result.normal
+    if seen is not None:
+        seen[ns, ps] = d
     keep = d < below
     ns, ps, d, w1, w2, nv = ns[keep], ps[keep], d[keep], w1[keep], w2[keep], nv[keep]
     Tj = robot.frames(qs)[0][ns]                       # (K, dof, 4, 4): joint frames before motion
@@ -97,6 +110,11 @@ class ObstaclePenalty:
     path (G points), as a function of the coefficients C (K, dof): the ``extra`` cost of
     :class:`~.least_energy.ActionProblem`.
 
+    Between evaluations it remembers coal's distances and the points: a pair whose distance
+    there was d cannot come nearer than ``d - R . |q_new - q_old|`` (R: the model's bound on how
+    fast the pair's distance changes per unit of each joint), so it is skipped while that stays
+    above ``active``.
+
     Attributes:
         worst: the smallest distance seen at the last evaluation (inf when no pair was active).
     """
@@ -107,10 +125,19 @@ class ObstaclePenalty:
     active: float
     weight: float
     worst: float = field(default=np.inf)
+    _q: np.ndarray | None = field(default=None, repr=False)
+    _d: np.ndarray | None = field(default=None, repr=False)
 
     def __call__(self, C: np.ndarray) -> tuple[float, np.ndarray]:
         q = self.line + self.basis @ C
-        found = contacts(self.model, q, self.active)
+        reach = self.model._relative_reach                       # (pairs, dof), m per rad (or m)
+        if self._q is None or self._d is None:
+            lower = np.full((len(q), reach.shape[0]), -np.inf)
+        else:
+            lower = self._d - np.abs(q - self._q) @ reach.T      # still a lower bound at q
+        seen = np.empty_like(lower)
+        found = contacts(self.model, q, self.active, lower <= self.active, seen)
+        self._q, self._d = q, np.maximum(seen, lower)
         self.worst = float(found.d.min()) if found.d.size else np.inf
         if not found.d.size:
             return 0.0, np.zeros_like(C)

@@ -50,7 +50,7 @@ LIMIT_WEIGHT = 1e4
 LIMIT_INSET = 2e-3
 #: L-BFGS's relative decrease to stop at (the action to about 1e-4), and its steps per descent.
 FTOL = 1e-6
-MAX_ITERATIONS = 150
+MAX_ITERATIONS = 60
 
 
 class WayPath(JointPath):
