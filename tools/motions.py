@@ -1,7 +1,9 @@
-"""The motion types in figures and figures of merit: a blended LIN -> CIRC -> LIN sequence, and PTP
-with minimum kinetic energy against the joint line (library only, no ROS).
+"""The motion types in figures and figures of merit: a blended LIN -> CIRC -> LIN sequence, PTP
+with minimum kinetic energy against the joint line, and a PTP blocked by a box that goes around it
+(library only, no ROS).
 
-``python -m tools.motions [--output DIR]`` writes ``DIR/sequence.png`` and ``DIR/ptp.png`` and
+``python -m tools.motions [--output DIR]`` writes ``DIR/sequence.png``, ``DIR/ptp.png`` and
+``DIR/around.png`` and
 prints, per motion type, its accuracy, duration and plan time; :func:`motions_demo` is the main
 demo's step (tools/demo.py). Demo tooling, not part of the installed library.
 """
@@ -128,12 +130,47 @@ def _ptp(output: Path) -> dict[str, Any]:
     return out
 
 
+def _around(output: Path) -> dict[str, Any]:
+    """A PTP blocked by a box goes around it (issue 39, section 2): the UR5 with its collision
+    meshes, the arm along the way, the box, and the clearance against the fraction of the way."""
+    from geodesic_planner.core.around import AroundOptions
+    from geodesic_planner.core.collision import CollisionModel, SceneObject, Shape
+    from geodesic_planner.core.kinematics import trans
+    from geodesic_planner.io.collision_plot import plot_collision
+
+    meshes = ROOT / 'test' / 'data' / 'real_arms' / 'meshes'
+    srdf = meshes / 'example-robot-data' / 'robots' / 'ur_description' / 'srdf' / 'ur5.srdf'
+    robot = load_robot(str(UR5_URDF), tip_link='tool0')
+    mass = UrdfMass(robot, UR5_URDF.read_text())
+    q_a = np.array([0.8, -1.2, 1.4, -1.8, -1.57, 0.0])
+    q_b = np.array([-0.8, -1.2, 1.4, -1.8, -1.57, 0.0])
+    centre, edge = robot.fk(0.5 * (q_a + q_b))[:3, 3], 0.12
+    model = CollisionModel.for_robot(robot, UR5_URDF.read_text(), package_dirs=[str(meshes)],
+                                     srdf=srdf.read_text()).with_objects(
+        [SceneObject('box', Shape('box', (edge,) * 3), trans(*centre))])
+    path, plan_ms = _ms(lambda: plan_sequence(GeodesicPlanner(robot), [MotionItem('PTP', goal_joints=q_b)],
+                                              start_joints=q_a, mass=mass, around=AroundOptions(model, 1.0)))
+    s = np.linspace(0.0, 1.0, 201)
+    q = path.evaluate(s, 0)[0]
+    frames, tool = robot.frames(q)
+    arm = np.concatenate([np.zeros((len(q), 1, 3)), frames[:, :, :3, 3], tool[:, None, :3, 3]], axis=1)
+    clearance = model.distances(q)[0]
+    direct = model.distances(JointLinePath(robot, q_a, q_b).evaluate(s, 0)[0])[0]
+    note = path.notes[0]
+    plot_collision(output / 'around.png', arm, tool[:, :3, 3], s,
+                   [('(planned around it)', centre, edge, clearance, math.nan),
+                    ('(the blocked joint line)', centre, edge, direct, math.nan)], model.padding,
+                   title='UR5 (meshes): a PTP blocked by a box goes around it\n' + note.split(': ', 1)[1][:150])
+    return {'plan_ms': plan_ms, 'note': note, 'min_clearance_m': float(clearance.min()),
+            'direct_min_m': float(direct.min()), 'duration_s': float(path.timed().duration)}
+
+
 def motions_demo(output: Path, say: Callable[[str], None] = print) -> dict[str, Any]:
-    """Write ``sequence.png`` and ``ptp.png`` into ``output``; return the figures of merit."""
+    """Write ``sequence.png``, ``ptp.png`` and ``around.png`` into ``output``; return the figures of merit."""
     output.mkdir(parents=True, exist_ok=True)
     robot = load_robot('ur5e')
     summary = {'accuracy': _accuracy(robot, GeodesicPlanner(robot)), 'sequence': _sequence(output),
-               'ptp': _ptp(output)}
+               'ptp': _ptp(output), 'around': _around(output)}
     for name, part in summary['accuracy'].items():
         say(f'  {name}: tool within {part["deviation_m"]:.1e} m of its geometry, {part["duration_s"]:.3f} s, '
             f'planned in {part["plan_ms"]:.1f} ms')
@@ -143,7 +180,11 @@ def motions_demo(output: Path, say: Callable[[str], None] = print) -> dict[str, 
     for name, part in summary['ptp'].items():
         say(f'  PTP {name} (UR5): action {part["action"]:.3f}, energy integral {part["energy_integral_J_s"]:.3f} J s, '
             f'{part["duration_s"]:.3f} s, planned in {part["plan_ms"]:.1f} ms')
-    say(f'wrote {output / "sequence.png"}, {output / "ptp.png"}')
+    part = summary['around']
+    say(f'  PTP around a box (UR5 meshes): {part["note"]}; dense min distance {part["min_clearance_m"]:.4f} m '
+        f'(the blocked joint line: {part["direct_min_m"]:.4f} m), {part["duration_s"]:.3f} s, planned in '
+        f'{part["plan_ms"]:.0f} ms')
+    say(f'wrote {output / "sequence.png"}, {output / "ptp.png"}, {output / "around.png"}')
     return summary
 
 
