@@ -219,7 +219,11 @@ def test_demo_end_to_end(tmp_path: Path) -> None:
     assert seq['blended']['duration_s'] < seq['stopping']['duration_s']
     assert all(d <= 0.03 * (1 + 1e-9) for d in seq['blended']['zones_max_distance_m'])
     assert motions['ptp']['kinetic_energy']['action'] <= motions['ptp']['joint_line']['action']
-    for name in ('sequence.png', 'ptp.png'):
+    # a PTP blocked by a box goes around it: clear of the padding where the joint line is not
+    around = motions['around']
+    assert around['direct_min_m'] < 0.01 <= around['min_clearance_m'], around
+    assert 'PTP went around obstacles' in around['note']
+    for name in ('sequence.png', 'ptp.png', 'around.png'):
         assert (out / name).read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert (out / 'bag' / 'metadata.yaml').is_file()
     from geodesic_planner.io.bags import read_trajectories
