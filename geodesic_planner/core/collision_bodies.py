@@ -124,14 +124,16 @@ def _build_octree(shape: Shape) -> None:
     object.__setattr__(shape, 'dimensions', dims)
     object.__setattr__(shape, 'vertices', v)
     res, side = dims[0], OCTREE_TILE
+    cell = np.floor(v * (1.0 / res)).astype(np.int64)
+    cell -= cell.min(axis=0)
     while True:     # tiles twice as large until there are at most MAX_OCTREE_TILES
-        tile = np.floor(v * (1.0 / (res * side))).astype(np.int64)
-        _, inverse = np.unique(tile, axis=0, return_inverse=True)
-        if inverse.max() < MAX_OCTREE_TILES:
+        t = cell // side
+        key = (t[:, 0] * (int(t[:, 1].max()) + 1) + t[:, 1]) * (int(t[:, 2].max()) + 1) + t[:, 2]
+        order = np.argsort(key, kind='stable')
+        starts = np.flatnonzero(np.r_[True, key[order][1:] != key[order][:-1]])
+        if len(starts) <= MAX_OCTREE_TILES:
             break
         side *= 2
-    order = np.argsort(inverse.reshape(-1), kind='stable')
-    starts = np.flatnonzero(np.r_[True, np.diff(inverse.reshape(-1)[order]) != 0])
     tiles = []
     for group in np.split(order, starts[1:]):
         c = np.ascontiguousarray(v[group])

@@ -107,39 +107,49 @@ def sensors(topics: Sequence[str], frames: Sequence[str], poses: Sequence[float]
 
 # --------------------------------------------------------------------------- self filter
 
-Bound = Callable[[np.ndarray], np.ndarray]
+#: points in a body's frame (N, 3), a limit (m) -> the bound (N,); values above the limit may be any
+#: value above it
+Bound = Callable[[np.ndarray, float], np.ndarray]
 
 
 def _hull_bound(points: np.ndarray) -> Bound | None:
     """max over the convex hull's faces of the signed distance to the face's plane (None: flat)."""
     from scipy.spatial import ConvexHull, QhullError
 
+    points = np.asarray(points, dtype=float)
     try:
         eq = ConvexHull(np.asarray(points, dtype=float)).equations       # unit normals, n.x + d <= 0 inside
     except (QhullError, ValueError):
         return None
     normals, offsets = eq[:, :3].copy(), eq[:, 3].copy()
-    return lambda x: (x @ normals.T + offsets).max(axis=1)
+    box = _box_bound(0.5 * (points.max(axis=0) - points.min(axis=0)), 0.5 * (points.max(axis=0) + points.min(axis=0)))
+
+    def hull(x: np.ndarray, limit: float) -> np.ndarray:
+        out = box(x, limit)                   # the hull's bounding box first: the faces only near it
+        near = np.flatnonzero(out <= limit)
+        out[near] = np.maximum(out[near], (x[near] @ normals.T + offsets).max(axis=1))
+        return out
+    return hull
 
 
 def _box_bound(half: np.ndarray, center: np.ndarray | None = None) -> Bound:
     c = np.zeros(3) if center is None else center
-    return lambda x: (np.abs(x - c) - half).max(axis=1)
+    return lambda x, limit: (np.abs(x - c) - half).max(axis=1)
 
 
 def distance_bound(geometry: object) -> Bound:
     """For a coal geometry: a function of points in its frame, (N, 3) -> (N,), that is at most the
     points' distance from it outside and <= 0 inside (1-Lipschitz): exact for spheres and capsules,
     the largest face-plane distance for boxes, cylinders, cones (their bounding cylinder) and convex
-    hulls, the local bounding box for anything else."""
+    hulls (with their bounding box's), the local bounding box for anything else (:data:`Bound`)."""
     g = geometry
     if isinstance(g, coal.Sphere):
         r = float(g.radius)
-        return lambda x: np.linalg.norm(x, axis=1) - r
+        return lambda x, limit: np.linalg.norm(x, axis=1) - r
     if isinstance(g, coal.Capsule):
         h, r = float(g.halfLength), float(g.radius)
 
-        def capsule(x: np.ndarray) -> np.ndarray:
+        def capsule(x: np.ndarray, limit: float) -> np.ndarray:
             axis = np.zeros_like(x)
             axis[:, 2] = np.clip(x[:, 2], -h, h)
             return np.linalg.norm(x - axis, axis=1) - r
@@ -148,7 +158,7 @@ def distance_bound(geometry: object) -> Bound:
         return _box_bound(np.asarray(g.halfSide, dtype=float))
     if isinstance(g, (coal.Cylinder, coal.Cone)):
         h, r = float(g.halfLength), float(g.radius)
-        return lambda x: np.maximum(np.hypot(x[:, 0], x[:, 1]) - r, np.abs(x[:, 2]) - h)
+        return lambda x, limit: np.maximum(np.hypot(x[:, 0], x[:, 1]) - r, np.abs(x[:, 2]) - h)
     found = None
     if isinstance(g, coal.ConvexBase):
         found = _hull_bound(np.asarray(g.points(), dtype=float))
@@ -186,33 +196,35 @@ class SelfFilter:
     def inside(self, points: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Which points (base frame, (N, 3), m) lie on the robot at ``q`` (its bodies grown by the
         padding): a boolean mask (N,)."""
-        return self.inside_xyz(np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 3).T), q)
+        return self.bound(points, q, self.padding) <= self.padding
 
-    def inside_xyz(self, xyz: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """:meth:`inside` of points given as rows x, y, z, (3, N)."""
-        n = xyz.shape[1]
-        out = np.zeros(n, dtype=bool)
-        if not len(self._bounds) or not n:
+    def bound(self, points: np.ndarray, q: np.ndarray, limit: float) -> np.ndarray:
+        """A 1-Lipschitz lower bound of the points' distances from the robot at ``q``, (N,), m: per
+        body the larger of its :func:`distance_bound` and the distance from its bounding sphere, the
+        least over the bodies; ``inf`` where it is above ``limit``. A point is on the robot where
+        it is at most the padding."""
+        P = np.asarray(points, dtype=float).reshape(-1, 3)
+        out = np.full(len(P), np.inf)
+        if not len(self._bounds) or not len(P):
             return out
         S = self.robot.segment_frames(self.robot.check_joints(np.asarray(q, dtype=float)[None], 'q'))[0]
         frames = S[self._segment] @ self._offset                              # (B, 4, 4)
         centers = np.einsum('bij,bj->bi', S[self._segment, :3, :3], self._center) + S[self._segment, :3, 3]
-        reach = self._radius + self.padding
+        reach = self._radius + limit
         lo, hi = (centers - reach[:, None]).min(axis=0), (centers + reach[:, None]).max(axis=0)
-        box = (xyz[0] >= lo[0]) & (xyz[0] <= hi[0])                          # the robot's box
-        for a in (1, 2):
-            box &= (xyz[a] >= lo[a]) & (xyz[a] <= hi[a])
-        near = np.flatnonzero(box)
-        sub = xyz[:, near].T
-        hit = np.zeros(len(sub), dtype=bool)
+        near = np.flatnonzero(np.all((lo <= P) & (hi >= P), axis=1))          # the robot's box
+        sub = P[near]
+        best = np.full(len(sub), np.inf)
         for b, bound in enumerate(self._bounds):
             d = sub - centers[b]
-            idx = np.flatnonzero(~hit & (np.einsum('ij,ij->i', d, d) <= reach[b] ** 2))
+            sphere = np.sqrt(np.einsum('ij,ij->i', d, d)) - self._radius[b]
+            idx = np.flatnonzero(sphere <= limit)
             if not idx.size:
                 continue
             local = (sub[idx] - frames[b, :3, 3]) @ frames[b, :3, :3]         # R^T (p - t)
-            hit[idx[bound(local) <= self.padding]] = True
-        out[near[hit]] = True
+            best[idx] = np.minimum(best[idx], np.maximum(bound(local, limit), sphere[idx]))
+        best[best > limit] = np.inf
+        out[near] = best
         return out
 
 
@@ -248,11 +260,12 @@ def voxel_centres(points: np.ndarray, resolution: float) -> tuple[np.ndarray, np
     """The centres (K, 3) of the voxels of side ``resolution`` that hold at least one of ``points``
     (base frame, (N, 3), finite), in octomap's grid; with the mask (N,) of the points the grid
     holds (within :data:`GRID_HALF` sides of the origin)."""
-    return _voxel_centres_xyz(np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 3).T), resolution)
+    packed, ok = _voxel_keys(np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 3).T), resolution)
+    return _centres(np.unique(packed), resolution), ok
 
 
-def _voxel_centres_xyz(xyz: np.ndarray, resolution: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`voxel_centres` of points as rows x, y, z, (3, N)."""
+def _voxel_keys(xyz: np.ndarray, resolution: float) -> tuple[np.ndarray, np.ndarray]:
+    """The packed voxel keys of the points (rows x, y, z, (3, N)) the grid holds, and their mask (N,)."""
     k = np.floor(xyz * (1.0 / resolution))
     ok = np.ones(k.shape[1], dtype=bool)
     if k.size and (k.min() < -GRID_HALF or k.max() >= GRID_HALF):
@@ -264,10 +277,42 @@ def _voxel_centres_xyz(xyz: np.ndarray, resolution: float) -> tuple[np.ndarray, 
     packed = key[0] << (2 * _BITS)
     packed |= key[1] << _BITS
     packed |= key[2]
-    u = np.unique(packed)
+    return packed, ok
+
+
+def _centres(keys: np.ndarray, resolution: float) -> np.ndarray:
+    """The centres (K, 3) of packed voxel keys (K,)."""
     mask = (1 << _BITS) - 1
-    cells = np.stack([u >> (2 * _BITS), (u >> _BITS) & mask, u & mask], axis=1) - GRID_HALF
-    return (cells + 0.5) * resolution, ok
+    cells = np.stack([keys >> (2 * _BITS), (keys >> _BITS) & mask, keys & mask], axis=1) - GRID_HALF
+    return (cells + 0.5) * resolution
+
+
+def _filtered_keys(packed: np.ndarray, xyz: np.ndarray, resolution: float, self_filter: SelfFilter,
+                   q: np.ndarray) -> tuple[np.ndarray, int]:
+    """The occupied voxels' keys once the robot's points are removed, and the points removed.
+
+    The filter's bound is 1-Lipschitz, so a voxel whose centre's bound is beyond the padding by
+    more than half its diagonal holds no point on the robot, one whose bound is below the padding by
+    as much holds only such points; the points of the voxels between are tested one by one. The
+    answer is the point-by-point one.
+    """
+    pad, half = self_filter.padding, 0.5 * math.sqrt(3.0) * resolution
+    voxels = np.unique(packed)
+    g = self_filter.bound(_centres(voxels, resolution), q, pad + half)
+    inner = g + half <= pad
+    border = ~inner & (g - half <= pad)
+    special = np.flatnonzero(inner | border)
+    if not special.size:
+        return voxels, 0
+    keys = voxels[special]                                              # sorted
+    pos = np.minimum(np.searchsorted(keys, packed), len(keys) - 1)
+    member = np.flatnonzero(keys[pos] == packed)
+    on_border = border[special][pos[member]]
+    tested = member[on_border]
+    kept = tested[~self_filter.inside(xyz[:, tested].T, q)]
+    removed = len(member) - len(kept)
+    keep = ~(inner | border)
+    return np.union1d(voxels[keep], packed[kept]), removed
 
 
 def cloud_map(sensor_id: str, points: np.ndarray, to_base: np.ndarray, resolution: float, *,
@@ -300,14 +345,16 @@ def cloud_map(sensor_id: str, points: np.ndarray, to_base: np.ndarray, resolutio
     finite = np.flatnonzero(np.isfinite(total))
     picked = cols[:, finite] if len(finite) < received else cols
     xyz = np.einsum('ij,jn->in', T[:3, :3], picked.astype(float, copy=False)) + T[:3, 3:4]
-    removed = 0
-    if self_filter is not None and xyz.shape[1]:
-        on_robot = self_filter.inside_xyz(xyz, np.asarray(q, dtype=float))
-        removed = int(on_robot.sum())
-        if removed:
-            xyz = xyz[:, ~on_robot]
-    centres, in_grid = _voxel_centres_xyz(xyz, float(resolution))
+    packed, in_grid = _voxel_keys(xyz, float(resolution))
     outside = int(len(in_grid) - in_grid.sum())
+    removed = 0
+    if self_filter is not None and len(packed):
+        if outside:
+            xyz = xyz[:, in_grid]
+        keys, removed = _filtered_keys(packed, xyz, float(resolution), self_filter, np.asarray(q, dtype=float))
+    else:
+        keys = np.unique(packed)
+    centres = _centres(keys, float(resolution))
     obj = None
     if len(centres):
         obj = SceneObject(sensor_id, Shape('octree', (float(resolution),), vertices=centres))
