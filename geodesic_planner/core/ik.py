@@ -338,6 +338,23 @@ def polish(robot: Chain, T_target: np.ndarray, q: np.ndarray, position_weight: f
     return _exact_solution(robot, T_target, q, position_weight, orientation_weight)
 
 
+def solve_from_seed(robot: Chain, T_target: np.ndarray, seed: np.ndarray, position_weight: float = 1.0,
+                    orientation_weight: float = 1.0) -> IKSolution | None:
+    """The exact solution undamped Gauss-Newton reaches from ``seed`` (within the limits, polished
+    onto a limit it passes by a hair), or None: the cheap first try of a goal on the seed's branch."""
+    T_target = check_transform(T_target, 'IK target')
+    seed = np.asarray(seed, dtype=float)
+    q_gn, res_gn, _, _ = gauss_newton_batch(robot, T_target[None], seed[None], position_weight=position_weight,
+                                            orientation_weight=orientation_weight, max_iterations=GN_ITERATIONS,
+                                            residual_tol=0.1 * EXACT_RESIDUAL, max_step=GN_MAX_STEP)
+    if not res_gn[0] <= EXACT_RESIDUAL:
+        return None
+    sol = _exact_solution(robot, T_target, q_gn[0], position_weight, orientation_weight, seed)
+    if sol is None and robot.dof >= 6:
+        sol = polish(robot, T_target, q_gn[0], position_weight, orientation_weight)
+    return sol
+
+
 def solve_ik(
     robot: Chain,
     T_target: np.ndarray,

@@ -64,7 +64,8 @@ def other_configuration(robot: Chain, q_end: np.ndarray, q_b: np.ndarray) -> Pat
         f'give the goal as a pose); followable fraction 1.0000', fraction=1.0)
 
 
-#: Tolerance (m, rad) of a trace that only seeds the least-motion solve beyond 6 joints.
+#: Tolerance (m, rad) of a trace that only finds the branch (seeds for the fast routes) or the
+#: reason and place of a refusal.
 SEED_TOLERANCE = 1e-5
 
 
@@ -80,10 +81,10 @@ class LineRoute:
     max_nodes: int
     check_limits: bool
     allow_long_way: bool
-    _trace_memo: tuple[bytes, GeodesicPath] | None
+    _trace_memo: tuple[bytes, GeodesicPath | PathFollowError | None] | None
     _task_line: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
-    _pullback_route: Callable[[np.ndarray, np.ndarray, IKSolution | None, IKSolution | None, float],
-                              GeodesicPath | None]
+    _pullback_route: Callable[[np.ndarray, np.ndarray, IKSolution | None, IKSolution | None, float,
+                               Callable[[np.ndarray], np.ndarray] | None], GeodesicPath | None]
 
     def _check_exact_end(self, ik: IKSolution, end: str) -> None:
         check_exact_end(self.robot, ik, end)
@@ -116,30 +117,37 @@ class LineRoute:
         deadline = None if self.time_limit is None else t0 + self.time_limit
         line_task = LineTask(*self._task_line(q_a, q_b))
         memo = self._trace_memo
-        traced = None
+        traced: GeodesicPath | None = None
         if memo is not None and memo[0] == q_a.tobytes() + q_b.tobytes():
-            traced, self._trace_memo = memo[1], None          # the goal IK's trace: used once
-        if traced is not None and self.redundant is None:      # 6 joints: the geodesic, already traced
-            return self._finish_line(traced, q_a, ik_a, ik_b, t0)
+            self._trace_memo = None                          # the goal IK's trace: used once
+            if isinstance(memo[1], PathFollowError):
+                if not self.allow_long_way:                  # (else the slerp the long way round too)
+                    raise memo[1]                            # the line stops on the way: why and where
+            else:
+                traced = memo[1]
         if self.redundant is not None:
             path = self._least_motion(line_task, q_a, q_b, ik_a, ik_b, t0)
-            if path is not None:
-                return path
-            if traced is None and ik_b is not None:
-                # a coarse trace: seeds for the least-motion solve, or the refusal with its place
-                traced, error = self._trace(line_task, q_a, None, ik_a, ik_b, t0, deadline, SEED_TOLERANCE)
-                if traced is None:
-                    assert error is not None
-                    raise error
-            if traced is not None:
-                # the least-motion solve again, started from the traced line (its nodes, on one
-                # branch); else the line traced exactly
-                seeds = LineFollow(traced.s_nodes, traced.q_nodes, 1.0, None)
-                path = self._least_motion(line_task, q_a, traced.q_goal, ik_a, ik_b, t0, seeds)
-                if path is not None:
-                    return path
         else:
-            path = self._pullback_route(q_a, q_b, ik_a, ik_b, t0)
+            path = self._pullback_route(q_a, q_b, ik_a, ik_b, t0, None) if traced is None else None
+        if path is not None:
+            return path
+        if traced is None and ik_b is not None:
+            # a coarse trace: seeds for the fast route on the line's branch, or the refusal with
+            # its place (the singularity, limit or reach does not need the path's precision)
+            traced, error = self._trace(line_task, q_a, None, ik_a, ik_b, t0, deadline, SEED_TOLERANCE)
+            if traced is None and not self.allow_long_way:   # (else the slerp the long way round too)
+                assert error is not None
+                raise error
+        if traced is not None:
+            # the fast route again, started from the traced line (its nodes, on one branch): the
+            # least-motion solve beyond 6 joints, the pull-back on 6; else the line traced exactly
+            seeds = LineFollow(traced.s_nodes, traced.q_nodes, 1.0, None)
+            q_end = traced.q_goal
+            if self.redundant is not None:
+                path = self._least_motion(line_task, q_a, q_end, ik_a, ik_b, t0, seeds)
+            else:
+                ik_end = None if ik_b is None else dataclasses.replace(ik_b, q=q_end)
+                path = self._pullback_route(q_a, q_end, ik_a, ik_end, t0, seeds.seeds)
             if path is not None:
                 return path
         goal_joints = None if ik_b is not None else q_b
@@ -198,19 +206,26 @@ class LineRoute:
             return None, other_configuration(self.robot, result.path.q_goal, goal_joints)
         return result.path, None
 
+    def _remember_for(self, q_a: np.ndarray, q_b: np.ndarray) -> None:
+        """Key the refusal that :meth:`_trace_to` remembered from q_a by the goal joints q_b too."""
+        memo = self._trace_memo
+        if memo is not None and memo[0] == q_a.tobytes():
+            self._trace_memo = (q_a.tobytes() + q_b.tobytes(), memo[1])
+
     def _trace_to(self, T_goal: np.ndarray, q_a: np.ndarray) -> IKSolution | None:
         """The goal configuration the line + slerp from q_a leads to, by tracing it (core/trace.py),
-        or None where the trace stops. The traced path, or the refusal, is remembered for
-        :meth:`_solve_line` (one trace per plan)."""
+        or None where the trace stops (the goal IK then says whether the goal is reachable at all,
+        and not the long way round: those reasons come first). The traced path, or the reason it
+        stops, is remembered for :meth:`_solve_line` (one trace per plan; :meth:`_remember_for`
+        keys a refusal by the goal joints the IK finds)."""
         T_a = self.robot.fk(q_a)
         task = LineTask.between(T_a, check_transform(T_goal, 'goal pose'))
         t0 = time.perf_counter()
         deadline = None if self.time_limit is None else t0 + self.time_limit
-        seeds = self.redundant is not None       # beyond 6 joints it seeds the least-motion solve
         result = trace(self.robot, line_curve(task.poses, task.twist), q_a, metric=self.metric,
-                       tolerance=SEED_TOLERANCE if seeds else self.path_tolerance, t0=t0, deadline=deadline,
-                       seeds_only=seeds)
+                       tolerance=SEED_TOLERANCE, t0=t0, deadline=deadline, seeds_only=True)
         if result.path is None:
+            self._trace_memo = (q_a.tobytes(), result.error)
             return None
         q_end = result.path.q_goal
         dp, dr = pose_error(self.robot.fk(q_end), T_goal)

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -34,7 +34,7 @@ from .cancel import checkpoint
 from .errors import BVPError, RequestError, SingularMetricError
 from .geodesic import (GeodesicEquations, GeodesicPath, SolverReport, collocation_rms, interpolation_error,
                        solve_geodesic_bvp)
-from .ik import IKSolution, nearest_turn, solve_ik
+from .ik import IKSolution, nearest_turn, solve_from_seed, solve_ik
 from .kinematics import Chain
 from .limits import check_joint_limits, check_path_limits
 from .long_way import check_long_way
@@ -167,14 +167,23 @@ class GeodesicPlanner(LineRoute):
         """Goal IK on the start's branch: seeded with the start joints; if that seed alone does
         not reach the goal, the line + slerp from the start pose is followed to it (line route:
         traced exactly, :meth:`_trace_to`; else in small IK steps) before random restarts."""
-        first = self._ik(T_goal, q_a, tolerance, restarts=0, raise_on_failure=False)
-        if first.success and (not self._line_route() or exact_end(first)):
-            return first
         if self._line_route():
+            near = solve_from_seed(self.robot, T_goal, q_a, self.metric.position_weight,
+                                   self.metric.effective_orientation_weight or 1.0)
+            if near is not None and exact_end(near):
+                return near
             found = self._trace_to(T_goal, q_a)
             if found is not None:
                 return found
-            return self._ik(T_goal, q_a, tolerance)
+            # reachable at all, on the start's branch or any (else: IKError)
+            found = self._ik(T_goal, q_a, tolerance, restarts=0, raise_on_failure=False)
+            if not (found.success and exact_end(found)):
+                found = self._ik(T_goal, q_a, tolerance)
+            self._remember_for(q_a, found.q)
+            return found
+        first = self._ik(T_goal, q_a, tolerance, restarts=0, raise_on_failure=False)
+        if first.success:
+            return first
         T_a = self.robot.fk(q_a)
         q = q_a
         for T in line_slerp(T_a, T_goal, np.linspace(0.0, 1.0, GOAL_CONTINUATION_STEPS + 1)[1:-1]):
@@ -323,16 +332,19 @@ class GeodesicPlanner(LineRoute):
         return path
 
     def _pullback_route(self, q_a: np.ndarray, q_b: np.ndarray, ik_a: IKSolution | None,
-                        ik_b: IKSolution | None, t0: float) -> GeodesicPath | None:
+                        ik_b: IKSolution | None, t0: float,
+                        seeds: Callable[[np.ndarray], np.ndarray] | None = None) -> GeodesicPath | None:
         """6 joints: the pulled-back line verified against the geodesic equations at a mesh, where
-        the metric is regular at both ends and the mesh's seeds find one branch; else None (the
-        line is then traced, core/trace.py)."""
+        the metric is regular at both ends and the mesh's seeds (``seeds(s)``: the line already
+        traced, on its branch; else the joint line) find one branch; else None (the line is then
+        traced, core/trace.py)."""
         try:
             self.metric.check_regular(self.robot, np.stack([q_a, q_b]), ['the start', 'the goal'])
         except SingularMetricError:
             return None                       # the trace starts or ends at a singularity
         s = np.linspace(0.0, 1.0, self.nodes)
-        q_g, v_g, exact = self.initial_guess(q_a, q_b, s)
+        q_g, v_g, exact = self.initial_guess(q_a, q_b, s, None if seeds is None else seeds(s),
+                                             on_branch=seeds is not None)
         if not exact:
             return None
         path = self._pullback_path(q_a, q_b, s, q_g, v_g, ik_a, ik_b, t0)

@@ -29,7 +29,8 @@ def test_a_followable_line_the_mesh_misses_is_planned_exactly(case: str) -> None
     planner = GeodesicPlanner(load_robot('ur5e'))
     T_a, T_b = U.ur5e_fk_batch(np.stack([q_a, q_b]))
     path = planner.plan(None, T_b, start_joints=q_a)
-    assert path.solver.method == 'trace'                # the mesh missed the branch: traced (issue 36)
+    # the mesh missed the branch: traced (issue 36), the pull-back seeded by the trace where it applies
+    assert path.solver.method in ('pullback', 'trace')
     s = np.linspace(0.0, 1.0, 2001)
     q = path.evaluate(s, order=0)[0]
     dp, dr = line_errors(U.ur5e_fk_batch(q), T_a, T_b, s)
