@@ -83,6 +83,7 @@ class LineRoute:
     allow_long_way: bool
     _trace_memo: tuple[bytes, GeodesicPath | PathFollowError | None] | None
     _task_line: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+    _regular_ends: Callable[[np.ndarray, np.ndarray], bool]
     _pullback_route: Callable[[np.ndarray, np.ndarray, IKSolution | None, IKSolution | None, float,
                                Callable[[np.ndarray], np.ndarray] | None], GeodesicPath | None]
 
@@ -131,7 +132,8 @@ class LineRoute:
             path = self._pullback_route(q_a, q_b, ik_a, ik_b, t0, None) if traced is None else None
         if path is not None:
             return path
-        if traced is None and ik_b is not None:
+        singular_end = self.redundant is None and not self._regular_ends(q_a, q_b)
+        if traced is None and ik_b is not None and not singular_end:
             # a coarse trace: seeds for the fast route on the line's branch, or the refusal with
             # its place (the singularity, limit or reach does not need the path's precision)
             traced, error = self._trace(line_task, q_a, None, ik_a, ik_b, t0, deadline, SEED_TOLERANCE)
@@ -231,4 +233,3 @@ class LineRoute:
         dp, dr = pose_error(self.robot.fk(q_end), T_goal)
         self._trace_memo = (q_a.tobytes() + q_end.tobytes(), result.path)
         return IKSolution(q_end, True, 0, 0.0, float(dp), float(dr))
-

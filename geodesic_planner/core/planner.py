@@ -338,9 +338,7 @@ class GeodesicPlanner(LineRoute):
         the metric is regular at both ends and the mesh's seeds (``seeds(s)``: the line already
         traced, on its branch; else the joint line) find one branch; else None (the line is then
         traced, core/trace.py)."""
-        try:
-            self.metric.check_regular(self.robot, np.stack([q_a, q_b]), ['the start', 'the goal'])
-        except SingularMetricError:
+        if not self._regular_ends(q_a, q_b):
             return None                       # the trace starts or ends at a singularity
         s = np.linspace(0.0, 1.0, self.nodes)
         q_g, v_g, exact = self.initial_guess(q_a, q_b, s, None if seeds is None else seeds(s),
@@ -352,8 +350,13 @@ class GeodesicPlanner(LineRoute):
             check_path_limits(self.robot, path)
         return path
 
-    def _path_limits(self, path: GeodesicPath) -> None:
-        check_path_limits(self.robot, path)
+    def _regular_ends(self, q_a: np.ndarray, q_b: np.ndarray) -> bool:
+        """Whether the metric is regular at both ends (the pull-back's geodesic equations need it)."""
+        try:
+            self.metric.check_regular(self.robot, np.stack([q_a, q_b]), ['the start', 'the goal'])
+        except SingularMetricError:
+            return False
+        return True
 
     def _pullback_path(self, q_a: np.ndarray, q_b: np.ndarray, s: np.ndarray, q: np.ndarray,
                        v: np.ndarray, ik_a: IKSolution | None, ik_b: IKSolution | None,
