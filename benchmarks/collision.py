@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Collision checking: its cost beside a plan, on the UR5 with its meshes and the ur5e with capsules (issue 22).
+"""Collision checking: its cost beside a plan, on the UR5 with its meshes and the ur5e with capsules (issues 22, 37).
 
 Run:  .venv/bin/python benchmarks/collision.py [--moves 20] [--repeats 5] [--markdown FILE]
 
@@ -12,12 +12,14 @@ again. Each move is planned (``GeodesicPlanner.plan`` + ``path.timed()``), then 
 self-collision alone, and with 10 scene primitives (boxes, spheres, cylinders, sizes 4-16 cm)
 placed 12-40 cm from the tool's line but clear of the whole motion (each candidate is kept only if
 the arm stays 2 cm beyond the padding from it on 201 samples of the motion). The check timed is
-``check_state(start)`` + ``check_motion(positions, duration, joint_speed)`` with the trajectory's
-velocity limits as the speed bound, the way a planner calls it after a plan.
+``check_state(start)`` + ``branches.check_trajectory(model, trajectory, refine=False)``, the way
+the planner node checks a plan before publishing it; ``min_clearance`` (``refined()`` of that
+result, as the node bounds it after publishing) is timed apart.
 
 Printed per arm and scene: moves checked, median plan + timing time (ms), median check time (ms),
 the ratio of the two medians (same run), the median of the per-move ratios, the median number of
-configurations checked, the least clearance found, and moves refused by the check (expected 0:
+configurations checked, the median time of min_clearance (ms) and its configurations (the
+check's included), the least clearance found, and moves refused by the check (expected 0:
 the scenes are built clear of the motions). Timings are the median of ``--repeats`` runs of each
 call after a warm-up (wall clock, shared 2-core machine). The issue's target: at most 2 ms added
 per plan. Nothing is asserted.
@@ -39,6 +41,7 @@ sys.path[:0] = [str(ROOT / 'test'), str(ROOT / 'test' / 'core')]
 from test_real_arm_moves import random_move  # noqa: E402  (test tooling, after the path set-up)
 
 from geodesic_planner import GeodesicPlanner, load_robot  # noqa: E402
+from geodesic_planner.core.branches import check_trajectory  # noqa: E402
 from geodesic_planner.core.collision import CollisionModel, MotionClearance, SceneObject, Shape  # noqa: E402
 from geodesic_planner.core.errors import CollisionError, GeodesicPlannerError  # noqa: E402
 from geodesic_planner.core.kinematics import Chain, trans  # noqa: E402
@@ -79,14 +82,6 @@ def timed_median(fn: Callable[[], object], repeats: int) -> float:
     return float(np.median(times) * 1e3)
 
 
-def motion(traj) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
-    """check_motion's ``positions`` of a trajectory: t (M,) -> (q (M, dof), s (M,))."""
-    def positions(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        s = traj.s_of_t(t)[0]
-        return traj.path.evaluate(s, order=0)[0], s
-    return positions
-
-
 def random_shape(rng: np.random.Generator) -> Shape:
     kind = ('box', 'sphere', 'cylinder')[int(rng.integers(3))]
     if kind == 'box':
@@ -119,13 +114,16 @@ def scene(model: CollisionModel, traj, rng: np.random.Generator) -> list[SceneOb
 @dataclass
 class Move:
     """One planned move: its plan time and, per scene ('self', 'scene'), the check's time (ms),
-    configurations checked and least clearance (m); None where the check refused the move."""
+    configurations checked, min_clearance's time (ms) and configurations, and the least clearance
+    (m); None where the check refused the move."""
 
     plan_ms: float
     objects: int
     check_ms: dict[str, float | None] = field(default_factory=dict)
     checks: dict[str, int] = field(default_factory=dict)
     clearance: dict[str, float] = field(default_factory=dict)
+    clearance_ms: dict[str, float] = field(default_factory=dict)
+    clearance_checks: dict[str, int] = field(default_factory=dict)
 
 
 def run_arm(robot: Chain, model: CollisionModel, moves: int, repeats: int, seed: int
@@ -151,11 +149,10 @@ def run_arm(robot: Chain, model: CollisionModel, moves: int, repeats: int, seed:
         with_scene = model.with_objects(scene(model, traj, rng))
         move = Move(timed_median(lambda: planner.plan(None, T_b, start_joints=q_a).timed(), repeats),
                     len(with_scene.objects))
-        positions, speed = motion(traj), traj.max_velocity
         for key, m in (('self', model), ('scene', with_scene)):
             def check(m: CollisionModel = m) -> MotionClearance:
                 m.check_state(q_a)
-                return m.check_motion(positions, traj.duration, speed)
+                return check_trajectory(m, traj, refine=False)
             try:
                 result = check()
             except CollisionError:
@@ -163,7 +160,10 @@ def run_arm(robot: Chain, model: CollisionModel, moves: int, repeats: int, seed:
                 continue
             move.check_ms[key] = timed_median(check, repeats)
             move.checks[key] = result.checks
-            move.clearance[key] = result.min_clearance
+            move.clearance_ms[key] = timed_median(result.refined, repeats)
+            whole = result.refined()
+            move.clearance_checks[key] = whole.checks
+            move.clearance[key] = whole.min_clearance
         out.append(move)
     return out, redrawn, refused
 
@@ -175,17 +175,19 @@ def rows(name: str, moves: list[Move], redrawn: int, refused: int) -> list[str]:
         ok = [m for m in moves if m.check_ms[key] is not None]
         n_refused = len(moves) - len(ok)
         if not ok:
-            out.append(f'| {name} | {label} | 0 | {np.median(plan):.1f} | - | - | - | - | - | {n_refused} |')
+            out.append(f'| {name} | {label} | 0 | {np.median(plan):.1f} | - | - | - | - | - | - | - | {n_refused} |')
             continue
         t = np.array([m.check_ms[key] for m in ok], dtype=float)
         ratio = t / np.array([m.plan_ms for m in ok])
         out.append(f'| {name} | {label} | {len(ok)} | {np.median(plan):.1f} | {np.median(t):.2f} | '
                    f'{np.median(t) / np.median(plan):.3f} | {np.median(ratio):.3f} | '
                    f'{np.median([m.checks[key] for m in ok]):.0f} | '
+                   f'{np.median([m.clearance_ms[key] for m in ok]):.2f} | '
+                   f'{np.median([m.clearance_checks[key] for m in ok]):.0f} | '
                    f'{min(m.clearance[key] for m in ok):.3f} | {n_refused} |')
     objects = np.mean([m.objects for m in moves])
     out.append(f'| {name} | (draws: {redrawn} starts in collision drawn again, {refused} plans refused, '
-               f'{objects:.1f} objects per scene) | | | | | | | | |')
+               f'{objects:.1f} objects per scene) | | | | | | | | | | |')
     return out
 
 
@@ -199,7 +201,8 @@ def main() -> None:
              f'{args.moves} seeded line moves per arm; scene: {N_OBJECTS} primitives {NEAR:g}-{FAR:g} m from '
              f'the tool line, each clear of the motion by padding + {MARGIN:g} m.', '']
     head = ('| arm | checked against | moves | median plan + timed (ms) | median check (ms) | '
-            'ratio of medians | median per-move ratio | median configurations checked | least clearance (m) | '
+            'ratio of medians | median per-move ratio | median configurations checked | '
+            'median min_clearance (ms) | its median configurations | least clearance (m) | '
             'moves refused by the check |')
     lines += [head, '|' + '---|' * (head.count('|') - 1)]
     for i, (name, (robot, model)) in enumerate(arms().items()):
