@@ -10,8 +10,10 @@ import time
 #: Address space of a bounded run, bytes: the tools at their caps stay well under it (about 1 GB
 #: for geodesic-compare with every size at its cap, figures included).
 ADDRESS_SPACE = 2 << 30
-#: A refusal of an over-large size returns within this, s (start-up about 0.5 s; the machine is shared).
-QUICK = 30.0
+#: A refusal of an over-large size returns within this, s: a bound on runaway work, not a speed
+#: figure (start-up takes about 0.5 s on an idle machine; a whole-suite run on 2 busy cores took
+#: over 30 s once). The memory limit is what catches a size left unbounded.
+QUICK = 120.0
 
 
 def _limit() -> None:  # pragma: no cover - runs in the child
