@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import coal
 import numpy as np
@@ -65,7 +65,7 @@ from .errors import (
 from .kinematics import Chain
 
 __all__ = ['CLEARANCE_RESOLUTION', 'DEFAULT_LINK_RADIUS', 'DEFAULT_PADDING', 'RESOLUTION', 'CollisionModel',
-           'MotionClearance', 'SceneObject', 'Shape']
+           'MotionClearance', 'PairTable', 'SceneObject', 'Shape']
 
 #: Default ``collision_padding``: the clearance every checked pair keeps, m.
 DEFAULT_PADDING = 0.01
@@ -129,6 +129,20 @@ class MotionClearance:
             return f'min_clearance {self.min_clearance:.4f} m at the configurations checked: {where}'
         return (f'min_clearance {self.min_clearance:.4f} m (the smallest distance over the path, at most '
                 f'{CLEARANCE_RESOLUTION * 1e3:g} mm below it): {where}, {self.closest:.4f} m apart there')
+
+
+class PairTable(NamedTuple):
+    """The checked pairs (:attr:`CollisionModel.pair_table`). first, second: body indices (pairs,);
+    radius: bounding-sphere radii (bodies,), m; segment: each body's segment (bodies,); geometry:
+    each body's coal geometry; reach: (pairs, dof), the bound on how fast each pair's distance
+    changes per unit of each joint, m/rad (or m/m)."""
+
+    first: np.ndarray
+    second: np.ndarray
+    radius: np.ndarray
+    segment: np.ndarray
+    geometry: tuple[Any, ...]
+    reach: np.ndarray
 
 
 class CollisionModel:
@@ -295,6 +309,24 @@ class CollisionModel:
         return reach
 
     # ------------------------------------------------------------------ queries
+    @property
+    def pair_table(self) -> PairTable:
+        """The checked pairs' bodies, for terms that measure distances themselves (:mod:`.obstacle_penalty`)."""
+        return PairTable(self._ia, self._ib, self._radius, self._segment,
+                         tuple(b.geometry for b in self._bodies), self._relative_reach)
+
+    def body_frames(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every body's frame (N, bodies, 4, 4) and bounding-sphere centre (N, bodies, 3) at qs (N, dof), base frame."""
+        return self._poses(np.asarray(qs, dtype=float))
+
+    def clear_above(self, qs: np.ndarray, distance: float) -> np.ndarray:
+        """(N,) bool: every checked pair more than ``distance`` (m) apart at each of qs (N, dof) (exact
+        distances only where the bounding spheres come that near)."""
+        if self._ia.size == 0:
+            return np.ones(len(qs), dtype=bool)
+        lower = self._bounds(np.asarray(qs, dtype=float), exact_below=np.nextafter(distance, np.inf))[0]
+        return np.all(lower > distance, axis=1)
+
     def _poses(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Body frames (N, bodies, 4, 4) and bounding-sphere centres (N, bodies, 3), base frame."""
         S = self.robot.segment_frames(qs)[:, self._segment]

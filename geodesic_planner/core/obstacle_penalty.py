@@ -38,23 +38,25 @@ class Contacts:
 
 
 def contacts(model: CollisionModel, qs: np.ndarray, below: float, candidates: np.ndarray | None = None,
-             seen: np.ndarray | None = None) -> Contacts:
+             seen: np.ndarray | None = None, fns: dict[int, Any] | None = None) -> Contacts:
     """Every checked pair whose distance is below ``below`` (m) at the configurations qs (N, dof),
     with the distance's gradient in q.
 
     ``candidates`` (N, pairs), bool: only these may be below (the others are known not to be);
     ``seen`` (N, pairs): set to a lower bound of every pair's distance (coal's distance where it
-    was computed, the bounding spheres' elsewhere).
+    was computed, the bounding spheres' elsewhere); ``fns``: coal's distance functor per pair,
+    kept between calls.
     """
     robot = model.robot
     qs = np.asarray(qs, dtype=float)
-    ia, ib = model._ia, model._ib
+    table = model.pair_table
+    ia, ib = table.first, table.second
     empty = Contacts(np.zeros(0, int), np.zeros(0, int), np.zeros(0), np.zeros((0, robot.dof)))
     if ia.size == 0 or not len(qs):
         return empty
-    P, centers = model._poses(qs)
+    P, centers = model.body_frames(qs)
     bound = (np.linalg.norm(centers[:, ia] - centers[:, ib], axis=-1)
-             - model._radius[ia] - model._radius[ib])
+             - table.radius[ia] - table.radius[ib])
     if seen is not None:
         seen[:] = bound
     near = bound < below
@@ -63,9 +65,9 @@ def contacts(model: CollisionModel, qs: np.ndarray, below: float, candidates: np
     ns, ps = np.nonzero(near)
     if ns.size == 0:
         return empty
-    bodies, seg = model._bodies, model._segment
+    geometry, seg = table.geometry, table.segment
     request, result = coal.DistanceRequest(), coal.DistanceResult()
-    fns: dict[int, Any] = model._distance_fns
+    fns = {} if fns is None else fns
     cache: dict[tuple[int, int], Any] = {}
 
     def tf(n: int, b: int) -> Any:  # noqa: ANN401
@@ -80,7 +82,7 @@ def contacts(model: CollisionModel, qs: np.ndarray, below: float, candidates: np
         i, j = int(ia[p]), int(ib[p])
         fn = fns.get(p)
         if fn is None:
-            fn = fns[p] = coal.ComputeDistance(bodies[i].geometry, bodies[j].geometry)
+            fn = fns[p] = coal.ComputeDistance(geometry[i], geometry[j])
         result.clear()
         d[k] = fn(tf(n, i), tf(n, j), request, result)
         w1[k], w2[k], nv[k] = result.getNearestPoint1(), result.getNearestPoint2(), result.normal
@@ -127,16 +129,17 @@ class ObstaclePenalty:
     worst: float = field(default=np.inf)
     _q: np.ndarray | None = field(default=None, repr=False)
     _d: np.ndarray | None = field(default=None, repr=False)
+    _fns: dict[int, Any] = field(default_factory=dict, repr=False)
 
     def __call__(self, C: np.ndarray) -> tuple[float, np.ndarray]:
         q = self.line + self.basis @ C
-        reach = self.model._relative_reach                       # (pairs, dof), m per rad (or m)
+        reach = self.model.pair_table.reach                      # (pairs, dof), m per rad (or m)
         if self._q is None or self._d is None:
             lower = np.full((len(q), reach.shape[0]), -np.inf)
         else:
             lower = self._d - np.abs(q - self._q) @ reach.T      # still a lower bound at q
         seen = np.empty_like(lower)
-        found = contacts(self.model, q, self.active, lower <= self.active, seen)
+        found = contacts(self.model, q, self.active, lower <= self.active, seen, self._fns)
         self._q, self._d = q, np.maximum(seen, lower)
         self.worst = float(found.d.min()) if found.d.size else np.inf
         if not found.d.size:
