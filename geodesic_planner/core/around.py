@@ -65,12 +65,16 @@ def _ompl() -> tuple[Any, Any]:
 
 
 def find_way(model: CollisionModel, q_a: np.ndarray, q_b: np.ndarray, timeout: float = DEFAULT_TIMEOUT, *,
-             seed: int | None = None, simplify: float = SIMPLIFY_TIME) -> Way:
+             seed: int | None = None, simplify: float = SIMPLIFY_TIME, verify: bool = True) -> Way:
     """A collision-free way from q_a to q_b (dof,) within ``timeout`` s.
 
     ``simplify``: the time given to OMPL's simplifier (shortcuts, B-spline smoothing, at most
     until the deadline), s; 0: one pass of its vertex reduction only (random shortcuts, as many
     tries as the path has states: the smoothing of :func:`plan_around` does the rest).
+
+    ``verify``: check the way's segments continuously again before it is returned (each was
+    checked when the search or the simplifier added it; :func:`plan_around` checks what it makes
+    of the way instead).
 
     Raises:
         RequestError: a timeout that is not a positive finite number.
@@ -108,7 +112,7 @@ def find_way(model: CollisionModel, q_a: np.ndarray, q_b: np.ndarray, timeout: f
 
     def state_ok(state: object) -> bool:
         counts[0] += 1
-        return bool(model.distances(vector(state)[None])[0][0] > floor)
+        return bool(model.clear_above(vector(state)[None], floor)[0])
 
     def segment_ok(a: np.ndarray, b: np.ndarray) -> bool:
         counts[1] += 1
@@ -160,7 +164,7 @@ def find_way(model: CollisionModel, q_a: np.ndarray, q_b: np.ndarray, timeout: f
     simplify_ms = (time.perf_counter() - t1) * 1e3
     points = np.array([vector(path.getState(k)) for k in range(path.getStateCount())])
     points[0], points[-1] = q_a, q_b
-    for a, b in pairwise(points):   # verified before it is returned
+    for a, b in pairwise(points if verify else []):   # verified before it is returned
         if not segment_ok(a, b):
             raise PlanningFailedError(f'no collision-free path found in {float(timeout):g} s '
                                       '(a simplified segment failed the continuous check)')
@@ -201,24 +205,28 @@ def plan_around(model: CollisionModel, terms: Callable, q_a: np.ndarray, q_b: np
     """A collision-free path from q_a to q_b of least action ``int q'^T M q' ds`` (``terms``: the
     mass model's M(q) and its derivative, :meth:`~.ptp.MassModel.terms`) near the way OMPL finds:
     :func:`find_way` (its vertex reduction only), then :func:`~.smooth_around.smooth_way`, checked
-    continuously. The search ends at ``deadline`` (time.monotonic(); default now + ``timeout``);
-    a way found is smoothed for at most ``timeout`` s more, else returned as its polyline (smooth
-    to the third derivative): the whole plan takes at most twice the budget.
+    continuously. Search and smoothing share one budget, ending at ``deadline`` (time.monotonic();
+    default now + ``timeout``): the way found is smoothed until then, else returned as its polyline
+    (smooth to the third derivative, checked continuously as a whole): the plan ends within the
+    budget plus one descent step and that last check.
 
     Raises:
         as :func:`find_way` (PlanningFailedError "no collision-free path found in T s").
     """
     t0 = time.perf_counter()
     end = time.monotonic() + float(timeout) if deadline is None else float(deadline)
+    failed = f'no collision-free path found in {float(timeout):g} s'
     left = end - time.monotonic()
     if left <= 0.0:
-        raise PlanningFailedError(f'no collision-free path found in {float(timeout):g} s')
+        raise PlanningFailedError(failed)
     try:
-        way = find_way(model, q_a, q_b, left, seed=seed, simplify=0.0)
+        way = find_way(model, q_a, q_b, left, seed=seed, simplify=0.0, verify=False)
     except PlanningFailedError:
-        raise PlanningFailedError(f'no collision-free path found in {float(timeout):g} s') from None
-    # the budget bounds the search; the way found gets as long again to be smoothed
-    smoothed = smooth_way(model, terms, way.waypoints, time.monotonic() + float(timeout))
+        raise PlanningFailedError(failed) from None
+    try:
+        smoothed = smooth_way(model, terms, way.waypoints, end)
+    except CollisionError:      # the polyline as one path, at places its segments' checks did not see
+        raise PlanningFailedError(f'{failed} (the way failed the continuous check)') from None
     return AroundPlan(way, smoothed, (time.perf_counter() - t0) * 1e3)
 
 
