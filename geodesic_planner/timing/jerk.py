@@ -64,6 +64,9 @@ GOLDEN_STEPS = 5
 #: the v/a optimum), until one does not shorten the law.
 ACCEL_SCALES = (0.7, 0.5, 0.35, 0.25)
 LOOSE = 1.1
+#: With a constant-bound law known first, a scale none of whose laws beat it leaves the gentler
+#: scales unsearched unless its shortest (lower bound of a) law came within this fraction of it.
+SCALE_NEAR = 0.005
 #: Local slow-down passes (:func:`_local_passes`) run above this stretch (a dip the filter cannot follow).
 LOCAL_TRIGGER = 1.1
 #: The search under the cruise cap of the jerk rows runs when that cap is below this fraction of
@@ -145,31 +148,47 @@ class JerkLimited:
         x_max = None if tool is None else tool.speed_cap(int(self.refine), TOPP_MARGIN)
         checker = BoxCheck(path, ps, limits, tool, self.check_samples)
         x0 = topp(fine, vmax * (1.0 - TOPP_MARGIN), amax * (1.0 - TOPP_MARGIN), x_max)
-        t_star = sum(p.t_star for _, p in star_pieces(fine.s, x0))     # the v/a optimum
+        pieces0 = star_pieces(fine.s, x0)
+        t_star = sum(p.t_star for _, p in pieces0)     # the v/a optimum
 
-        def search(cap: np.ndarray | None) -> tuple[tuple[BoxLaw, float], np.ndarray, float]:
-            """The shortest law over the acceleration scales, for the optimal pass under ``cap``."""
+        # A path without rests or breakpoints inside (not a blend) also gets the constant-bound
+        # 7-segment laws, first: the shortest of them bounds the search (what cannot beat it is
+        # not searched, and a check stops once certainly longer).
+        bound: tuple[BoxLaw, float] | None = None
+        if len(pieces0) == 1 and not ps.jumps3.size:
+            bound = _constant_bound(fine, limits, checker)
+
+        def search(cap: np.ndarray | None) -> tuple[tuple[BoxLaw, float], np.ndarray, float] | None:
+            """The shortest law over the acceleration scales, for the optimal pass under ``cap``,
+            if one is shorter than ``bound``."""
             found: tuple[tuple[BoxLaw, float], np.ndarray, float] | None = None
+            best_total = math.inf if bound is None else bound[1] * bound[0].duration
             start = WIDTH_SCAN.index(1.0)
             for beta in (1.0,) + ACCEL_SCALES:
                 checkpoint()
                 x = x0 if beta == 1.0 and cap is x_max else topp(
                     fine, vmax * (1.0 - TOPP_MARGIN), beta * amax * (1.0 - TOPP_MARGIN), cap)
-                pieces = star_pieces(fine.s, x)
+                pieces = pieces0 if x is x0 else star_pieces(fine.s, x)
                 w_ref = _reference_width(fine, x, pieces, jmax)
-                if found is not None and _floor(pieces, w_ref) >= found[0][1] * found[0][0].duration:
+                if _floor(pieces, w_ref) >= best_total:
                     break       # this scale's laws are all longer than the one found: unsearched
-                cand = _best_width(pieces, w_ref, checker, start)
+                cand, shortest = _best_width(pieces, w_ref, checker, start, best_total)
+                if cand is None:
+                    # none shorter than the law found; beside the constant-bound law alone, a
+                    # gentler scale is still tried when this one came close (``shortest``: its
+                    # shortest lower bound)
+                    if found is not None or shortest > (1.0 + SCALE_NEAR) * best_total:
+                        break
+                    continue
                 # the next scale's scan starts from this one's width factor (nearest grid point)
                 c = float(np.median(cand[0].width / w_ref))
                 start = int(np.argmin([abs(math.log(c / g)) for g in WIDTH_SCAN]))
                 total = cand[1] * cand[0].duration
-                if found is not None and total >= found[0][1] * found[0][0].duration:
+                if total >= best_total:
                     break
-                found = (cand, x, beta)
+                found, best_total = (cand, x, beta), total
                 if beta == 1.0 and total <= LOOSE * t_star:
                     break
-            assert found is not None
             return found
 
         # Where the optimal profile runs far above the cruise cap of the jerk rows (a sharp
@@ -178,13 +197,17 @@ class JerkLimited:
         cap = x_max
         if np.any(cruise < CRUISE_TRIGGER * x0):
             cap = cruise if x_max is None else np.minimum(x_max, cruise)
-        best, best_x, best_beta = search(cap)
-        law, lam = best
-        if lam > LOCAL_TRIGGER:     # a local dip the filter cannot follow: slow down near it
-            law, lam = _local_passes(fine, best_x, best_beta, best, checker, cap, jmax)
-        if len(law.width) == 1 and not ps.jumps3.size:
-            # no rest and no breakpoint inside (not a blend): the constant-bound 7-segment laws
-            law, lam = _constant_bound(fine, limits, checker, (law, lam))
+        found = search(cap)
+        if found is None:           # the constant-bound law is the shortest
+            assert bound is not None
+            law, lam = bound
+        else:
+            best, best_x, best_beta = found
+            law, lam = best
+            if lam > LOCAL_TRIGGER:     # a local dip the filter cannot follow: slow down near it
+                law, lam = _local_passes(fine, best_x, best_beta, best, checker, cap, jmax, bound)
+            if bound is not None and len(law.width) == 1 and bound[1] * bound[0].duration < lam * law.duration:
+                law, lam = bound
         # The search compared widths on interpolated derivatives; the law kept is checked exactly.
         lam = checker.stretch(law, exact=True)
         t_min = lam * law.duration
@@ -207,27 +230,36 @@ def cruise_cap(ps: PathSamples, s_fine: np.ndarray, jmax: np.ndarray) -> np.ndar
 
 
 def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[BoxLaw, float],
-                  checker: BoxCheck, x_max: np.ndarray | None, jmax: np.ndarray
-                  ) -> tuple[BoxLaw, float]:
+                  checker: BoxCheck, x_max: np.ndarray | None, jmax: np.ndarray,
+                  bound: tuple[BoxLaw, float] | None = None) -> tuple[BoxLaw, float]:
     """Cap the optimal profile near the samples over a limit and filter again (as in
-    :mod:`.smoothing`, step 3), keeping the shortest checked law; (law, its stretch)."""
+    :mod:`.smoothing`, step 3), keeping the shortest checked law; (law, its stretch).
+
+    Each pass only lowers the cap, so its profile is slower and, with the window kept, its law
+    no shorter before the stretch: once the law is as long as ``bound``'s stretched duration (a
+    law known to be kept otherwise), no further pass can win and none is run."""
     lim = checker.limits
     law, lam = best
     cap = x_max
     stale = 0
+    known = math.inf if bound is None else bound[1] * bound[0].duration
     for _ in range(LOCAL_PASSES):
         checkpoint()
+        if law.duration * (1.0 - 1e-12) >= min(known, best[1] * best[0].duration):
+            break
         t, need = checker.need(law)
         cap = local_cap(fine.s, x, law, t, need, float(law.width.max()), cap)
         x = topp(fine, lim.max_velocity * (1.0 - TOPP_MARGIN),
                  beta * lim.max_acceleration * (1.0 - TOPP_MARGIN), cap)
         pieces = star_pieces(fine.s, x)
         if len(pieces) != law.width.size:      # the rests moved: search the width again
-            law, lam = _best_width(pieces, _reference_width(fine, x, pieces, jmax), checker)
+            cand, _ = _best_width(pieces, _reference_width(fine, x, pieces, jmax), checker)
+            assert cand is not None         # no bound: every check exact
+            law, lam = cand
         else:                                  # keep the window: one check per pass
             tables = star_tables(pieces) if kernels.active() else None
             law = build_box_law(pieces, law.width, tables)
-            lam = checker.search(pieces, tables, law.width)[0]
+            lam = checker.search(pieces, tables, law.width, min(known, best[1] * best[0].duration))[0]
         gain = lam * law.duration < (1.0 - LOCAL_GAIN) * best[1] * best[0].duration
         if lam * law.duration < best[1] * best[0].duration:
             best = (law, lam)
@@ -237,11 +269,10 @@ def _local_passes(fine: PathSamples, x: np.ndarray, beta: float, best: tuple[Box
     return best
 
 
-def _constant_bound(fine: PathSamples, limits: JointLimits, checker: BoxCheck,
-                    best: tuple[BoxLaw, float]) -> tuple[BoxLaw, float]:
-    """The shortest of ``best`` and the 7-segment laws of s under constant bounds (:mod:`.line_profile`
-    with the path's largest |q'| per joint as the line's steps, the acceleration and jerk bounds
-    times CONSTANT_SHAPES), each uniformly stretched into the limits: (law, its stretch).
+def _constant_bound(fine: PathSamples, limits: JointLimits, checker: BoxCheck) -> tuple[BoxLaw, float] | None:
+    """The shortest of the 7-segment laws of s under constant bounds (:mod:`.line_profile` with the
+    path's largest |q'| per joint as the line's steps, the acceleration and jerk bounds times
+    CONSTANT_SHAPES), each uniformly stretched into the limits: (law, its stretch); None if none.
 
     Such a law is the box filter of the trapezoid ``x = min(vp^2, 2 a s, 2 a (1 - s))`` with the
     window ``a / J`` (a its peak acceleration, :class:`.line_profile.SevenSegment`), built on the
@@ -250,7 +281,9 @@ def _constant_bound(fine: PathSamples, limits: JointLimits, checker: BoxCheck,
     and whose acceleration peaks below the limit): ur5e LINs at 15 rad/s^3 up to 14 % shorter."""
     steps = np.maximum(np.abs(fine.aL), np.abs(fine.aR)).max(axis=0)
     if not np.any(steps):
-        return best
+        return None
+    best: tuple[BoxLaw, float] | None = None
+    known = math.inf
     V, A, J = line_bounds(steps, limits, TOPP_MARGIN)
     for fa, fj in CONSTANT_SHAPES:
         checkpoint()
@@ -266,9 +299,9 @@ def _constant_bound(fine: PathSamples, limits: JointLimits, checker: BoxCheck,
         # a window a hair shorter than the star's cruise when the 7-segment law has none (two jerk
         # events would coincide there, and a check could read them as one jump of 2 J)
         width = np.array([a_peak / (fj * J) * (1.0 - 1e-6)])
-        lam, duration, exact = checker.search(pieces, tables, width, best[1] * best[0].duration)
-        if exact and lam * duration < best[1] * best[0].duration:
-            best = (build_box_law(pieces, width, tables), lam)
+        lam, duration, exact = checker.search(pieces, tables, width, known)
+        if exact and lam * duration < known:
+            best, known = (build_box_law(pieces, width, tables), lam), lam * duration
     return best
 
 
@@ -279,9 +312,12 @@ def _floor(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray) -> float:
 
 
 def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checker: BoxCheck,
-                start: int = WIDTH_SCAN.index(1.0)) -> tuple[BoxLaw, float]:
+                start: int = WIDTH_SCAN.index(1.0), bound: float = math.inf
+                ) -> tuple[tuple[BoxLaw, float] | None, float]:
     """The width factor with the shortest checked duration, searched from ``WIDTH_SCAN[start]``:
-    (law, its stretch)."""
+    ((law, its stretch), stretched duration); (None, the shortest lower bound seen) when no width
+    tried is shorter than ``bound`` (s: a law known already; each check stops once certainly
+    longer than it)."""
     # log c -> (stretch x duration, width, stretch, exact); not exact: a lower bound, longer than
     # a duration known exactly (the check stopped there; see BoxCheck.search)
     cache: dict[float, tuple[float, np.ndarray, float, bool]] = {}
@@ -290,6 +326,7 @@ def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checke
     def total(log_c: float, above: float = math.inf) -> float:
         """The duration of width factor exp(log_c), exact, or any value longer than ``above``."""
         hit = cache.get(log_c)
+        above = min(above, bound)
         if hit is None or (not hit[3] and hit[0] <= above):
             width = math.exp(log_c) * w_ref
             lam, duration, exact = checker.search(pieces, tables, width, above)
@@ -335,9 +372,10 @@ def _best_width(pieces: list[tuple[float, StarPiece]], w_ref: np.ndarray, checke
         else:
             lo, a = a, b
             b = lo + ratio * (hi - lo)
-    _, width, lam, exact = min(cache.values(), key=lambda item: item[0])
-    assert exact        # a check stops early only past a shorter, exact duration
-    return build_box_law(pieces, width, tables), lam
+    shortest, width, lam, exact = min(cache.values(), key=lambda item: item[0])
+    if not exact:       # a check stops early only past a shorter, exact duration, or ``bound``
+        return None, shortest
+    return (build_box_law(pieces, width, tables), lam), shortest
 
 
 __all__ = ['JerkLimited', 'cruise_cap']
