@@ -34,6 +34,7 @@ import numpy as np
 
 from .collision import CollisionModel
 from .collision_bodies import SceneObject, Shape
+from .collision_scene import with_object_replaced
 from .errors import ConfigError, PlanningFailedError, RequestError, quoted
 
 __all__ = ['DEFAULT_MAX_POINTS', 'DEFAULT_RESOLUTION', 'DEFAULT_SELF_FILTER_PADDING', 'CloudMap', 'SelfFilter',
@@ -110,6 +111,9 @@ def sensors(topics: Sequence[str], frames: Sequence[str], poses: Sequence[float]
 #: points in a body's frame (N, 3), a limit (m) -> the bound (N,); values above the limit may be any
 #: value above it
 Bound = Callable[[np.ndarray, float], np.ndarray]
+#: Points x faces evaluated at once by a hull's bound: a block stays in the cache, and its product
+#: stays below OpenBLAS's threading threshold (its threads spin, a cost on a loaded machine).
+_BLOCK = 65_536
 
 
 def _hull_bound(points: np.ndarray) -> Bound | None:
@@ -124,10 +128,14 @@ def _hull_bound(points: np.ndarray) -> Bound | None:
     normals, offsets = eq[:, :3].copy(), eq[:, 3].copy()
     box = _box_bound(0.5 * (points.max(axis=0) - points.min(axis=0)), 0.5 * (points.max(axis=0) + points.min(axis=0)))
 
+    rows = max(1, _BLOCK // len(normals))
+
     def hull(x: np.ndarray, limit: float) -> np.ndarray:
         out = box(x, limit)                   # the hull's bounding box first: the faces only near it
         near = np.flatnonzero(out <= limit)
-        out[near] = np.maximum(out[near], (x[near] @ normals.T + offsets).max(axis=1))
+        for start in range(0, len(near), rows):
+            idx = near[start:start + rows]
+            out[idx] = np.maximum(out[idx], (x[idx] @ normals.T + offsets).max(axis=1))
         return out
     return hull
 
@@ -362,9 +370,9 @@ def cloud_map(sensor_id: str, points: np.ndarray, to_base: np.ndarray, resolutio
 
 
 def with_map(model: CollisionModel, sensor_id: str, obj: SceneObject | None) -> CollisionModel:
-    """``model`` with the object named ``sensor_id`` replaced by ``obj`` (removed when None)."""
-    kept = [o for o in model.objects if o.id != sensor_id]
-    return model.with_objects(kept if obj is None else [*kept, obj])
+    """``model`` with the object named ``sensor_id`` replaced by ``obj`` (removed when None; ``obj`` comes
+    last): :func:`~.collision_scene.with_object_replaced`, the other objects' bodies and pairs reused."""
+    return with_object_replaced(model, sensor_id, obj)
 
 
 def map_summary(found: CloudMap, age: float) -> str:
