@@ -35,10 +35,10 @@ from .path import JointPath, by_segment, check_order, check_s
 __all__ = ['MARGIN', 'MODES', 'Smoothed', 'WayPath', 'action_of', 'smooth_way', 'way_action']
 
 #: Modes per joint of the path around obstacles, and the action's quadrature nodes.
-MODES = 8
+MODES = 5
 NODES = 20
 #: Points of the path where the obstacle term is evaluated (the ends excluded: they are fixed).
-PENALTY_POINTS = 48
+PENALTY_POINTS = 24
 #: The obstacle term acts on pairs nearer than the padding + the check's margin + this, m.
 MARGIN = 0.03
 #: Obstacle weights tried, each from the last result (a unit costs the line's action when every
@@ -50,7 +50,7 @@ LIMIT_WEIGHT = 1e4
 LIMIT_INSET = 2e-3
 #: L-BFGS's relative decrease to stop at (the action to about 1e-4), and its steps per descent.
 FTOL = 1e-6
-MAX_ITERATIONS = 60
+MAX_ITERATIONS = 30
 
 
 class WayPath(JointPath):
