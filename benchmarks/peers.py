@@ -23,7 +23,10 @@ pair the two calls back to back on the same input, thread CPU time):
    velocity, acceleration and jerk (exact path derivatives, 4001 times) 0.1 % below its limit,
    as the project's laws keep them. Lower bound: max(the v/a time-optimal duration (the
    project's TOPP on 800 intervals, full limits), each joint's own 7-segment minimum time for its
-   displacement (test/timing/jerk_bound.py)). Compute: ``timed(max_jerk=j)`` / ``plan``.
+   displacement, and the path-coupled bound: every joint's speed |q'_j(s)| sdot within the fastest
+   ramp from rest since the start and until the end, sdot within the v/a optimum
+   (test/timing/jerk_bound.py, ``coupled_lower_bound``)); the column "binding" names the largest.
+   Compute: ``timed(max_jerk=j)`` / ``plan``.
 3. **TOPP under v/a limits vs toppra** (seidel, ``ParametrizeConstAccel``; the same paths and
    limits): our fastest (bang-bang) duration and ``timed()`` against toppra's; compute of
    ``timed()`` against toppra's whole call; toppra's largest acceleration / limit by exact
@@ -55,7 +58,7 @@ from geodesic_planner.timing.topp import topp
 from run import ROOT, machine, moved, ur5e_case  # benchmarks/ is the script's directory
 
 sys.path.insert(0, os.path.join(ROOT, 'test', 'timing'))      # test tooling: the 7-segment bound
-from jerk_bound import min_rest_to_rest_time
+from jerk_bound import coupled_lower_bound, min_rest_to_rest_time
 
 try:
     import ruckig
@@ -191,19 +194,26 @@ def s_ruckig_reference(path, robot, j: float, samples: int = 4001) -> float:
     return traj.duration * max(rv / k, math.sqrt(ra / k), math.cbrt(rj / k))
 
 
+def topp_profile(path, robot, intervals: int = 800) -> tuple[np.ndarray, np.ndarray]:
+    """The v/a time-optimal sdot^2 (1/s^2) under the full limits at ``intervals + 1`` uniform s (the
+    project's TOPP on that grid), and the path's q' there."""
+    fine = sample_path(path, intervals)
+    return topp(fine, robot.max_velocity, robot.max_acceleration), path.evaluate(fine.s, 1)[1]
+
+
 def topp_duration(path, robot, intervals: int = 800) -> float:
     """The v/a time-optimal duration (s) under the full limits, the project's TOPP on a fine grid."""
-    fine = sample_path(path, intervals)
-    x = topp(fine, robot.max_velocity, robot.max_acceleration)
-    return float(np.sum(2.0 * np.diff(fine.s) / (np.sqrt(x[1:]) + np.sqrt(x[:-1]))))
+    x, _ = topp_profile(path, robot, intervals)
+    ds = 1.0 / intervals
+    return float(np.sum(2.0 * ds / (np.sqrt(x[1:]) + np.sqrt(x[:-1]))))
 
 
 def lin_table(rounds: int, count: int) -> None:
     print('\n### 2. Jerk-limited LIN vs ruckig on s (constant bounds, stretched into the limits)\n')
     robot, paths, replan = lin_paths(count)
-    print('| move | max_jerk | ours (s) | s-ruckig (s) | ours / s-ruckig | lower bound (s) | ours / bound '
+    print('| move | max_jerk | ours (s) | s-ruckig (s) | ours / s-ruckig | lower bound (s) | binding | ours / bound '
           '| compute timed(max_jerk) / plan (ms) |')
-    print('|---|---:|---:|---:|---:|---:|---:|---:|')
+    print('|---|---:|---:|---:|---:|---:|---|---:|---:|')
     for j in (15.0, 50.0):
         worst_ref, worst_lb, ratios = 0.0, 0.0, []
         for i, path in enumerate(paths):
@@ -212,14 +222,20 @@ def lin_table(rounds: int, count: int) -> None:
             q_ends = path.evaluate(np.array([0.0, 1.0]), 0)[0]
             own = float(min_rest_to_rest_time(np.abs(q_ends[1] - q_ends[0]), robot.max_velocity,
                                               robot.max_acceleration, j).max())
-            bound = max(topp_duration(path, robot), own)
+            x_star, dq = topp_profile(path, robot)
+            t_va = float(np.sum(2.0 / 800 / (np.sqrt(x_star[1:]) + np.sqrt(x_star[:-1]))))
+            coupled = coupled_lower_bound(dq, x_star, robot.max_velocity, robot.max_acceleration, j,
+                                          0.5 * max(t_va, own), ours.duration)
+            bounds = {'v/a': t_va, 'joint': own, 'coupled': coupled}
+            binding = max(bounds, key=bounds.__getitem__)
+            bound = bounds[binding]
             t_o, t_p = pair_times(lambda p=path, j=j: p.timed(max_jerk=j), lambda i=i: replan(i), rounds)
             ratios.append(t_o / t_p)
             worst_ref = max(worst_ref, ours.duration / ref)
             worst_lb = max(worst_lb, ours.duration / bound)
             print(f'| {i} | {j:g} | {ours.duration:.4f} | {ref:.4f} | {ours.duration / ref:.4f} | {bound:.4f} | '
-                  f'{ours.duration / bound:.3f} | {t_o / t_p:.2f} ({t_o:.2f} / {t_p:.2f}) |')
-        print(f'| all | {j:g} | | | worst {worst_ref:.4f} | | worst {worst_lb:.3f} | '
+                  f'{binding} | {ours.duration / bound:.3f} | {t_o / t_p:.2f} ({t_o:.2f} / {t_p:.2f}) |')
+        print(f'| all | {j:g} | | | worst {worst_ref:.4f} | | | worst {worst_lb:.3f} | '
               f'median {float(np.median(ratios)):.2f} |')
 
 
