@@ -28,7 +28,8 @@ q(s) never changes, only s(t).
    the acceleration limits scaled by ACCEL_SCALES, keeping the shortest law (gentler
    accelerations allow gentler ramps: the 7-segment optimum peaks at sqrt(vmax jmax)). A path
    without rests inside also gets the 7-segment laws of s under constant bounds, stretched into
-   the limits (:func:`_constant_bound`); the shortest law is kept.
+   the limits (:func:`_constant_bound`), first: the shortest of them bounds the search (scales,
+   checks and local passes that cannot beat it are skipped or stopped); the shortest law is kept.
 4. ``duration=`` stretches the law uniformly (never shorter than the minimum).
 
 A path that declares itself a straight joint line (``joint_line``: a PTP's
