@@ -293,7 +293,7 @@ _SPECS = (
               "ament index (AMENT_PREFIX_PATH's share directories) is searched after them.", '',
               string_array),
     ParamSpec('scene', STRING, '',
-              'Path to a scene YAML (objects with id, type and dimensions or mesh, pose; README); '
+              'Path to a scene YAML (objects with id, type and dimensions or mesh, pose; docs/usage.md); '
               'the scene services change it at run time. Empty: no objects.'),
     ParamSpec('ptp_around_obstacles', BOOL, True,
               'A PTP item of ~/plan_sequence whose path collides goes around the obstacles (OMPL '
