@@ -134,12 +134,12 @@ def _build_octree(shape: Shape) -> None:
         if len(starts) <= MAX_OCTREE_TILES:
             break
         side *= 2
-    tiles = []
-    for group in np.split(order, starts[1:]):
-        c = np.ascontiguousarray(v[group])
-        lo, hi = c.min(axis=0) - 0.5 * res, c.max(axis=0) + 0.5 * res
-        tiles.append((coal.makeOctree(c, res), 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo))))
-    object.__setattr__(shape, 'octree', tuple(tiles))
+    c = v[order]                                      # the tiles' voxels one after the other
+    lo, hi = np.minimum.reduceat(c, starts) - 0.5 * res, np.maximum.reduceat(c, starts) + 0.5 * res
+    mid, radius = 0.5 * (lo + hi), (0.5 * np.linalg.norm(hi - lo, axis=1)).tolist()
+    ends = [*starts[1:].tolist(), len(c)]
+    object.__setattr__(shape, 'octree', tuple((coal.makeOctree(c[a:b], res), mid[k], radius[k])
+                                              for k, (a, b) in enumerate(zip(starts.tolist(), ends))))
 
 
 def _check_mesh(shape: Shape) -> None:
