@@ -274,7 +274,8 @@ def voxel_centres(points: np.ndarray, resolution: float) -> tuple[np.ndarray, np
 
 def _voxel_keys(xyz: np.ndarray, resolution: float) -> tuple[np.ndarray, np.ndarray]:
     """The packed voxel keys of the points (rows x, y, z, (3, N)) the grid holds, and their mask (N,)."""
-    k = np.floor(xyz * (1.0 / resolution))
+    k = xyz * (1.0 / resolution)
+    np.floor(k, out=k)
     ok = np.ones(k.shape[1], dtype=bool)
     if k.size and (k.min() < -GRID_HALF or k.max() >= GRID_HALF):
         for a in range(3):
@@ -351,8 +352,11 @@ def cloud_map(sensor_id: str, points: np.ndarray, to_base: np.ndarray, resolutio
     cols = pts.T                                          # x, y, z rows (views)
     total = cols[0] + cols[1] + cols[2]                   # NaN or inf in any coordinate (or huge)
     finite = np.flatnonzero(np.isfinite(total))
-    picked = cols[:, finite] if len(finite) < received else cols
-    xyz = np.einsum('ij,jn->in', T[:3, :3], picked.astype(float, copy=False)) + T[:3, 3:4]
+    picked = np.empty((3, len(finite)))                   # a row at a time (3x faster than cols[:, finite])
+    for axis in range(3):
+        picked[axis] = cols[axis][finite] if len(finite) < received else cols[axis]
+    xyz = np.einsum('ij,jn->in', T[:3, :3], picked)
+    xyz += T[:3, 3:4]
     packed, in_grid = _voxel_keys(xyz, float(resolution))
     outside = int(len(in_grid) - in_grid.sum())
     removed = 0
