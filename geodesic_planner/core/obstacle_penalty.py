@@ -17,7 +17,7 @@ from typing import Any
 import coal
 import numpy as np
 
-from .collision import CollisionModel
+from .collision import CollisionModel, PairTable
 
 __all__ = ['Contacts', 'ObstaclePenalty', 'contacts']
 
@@ -44,7 +44,7 @@ def contacts(model: CollisionModel, qs: np.ndarray, below: float, candidates: np
 
     ``candidates`` (N, pairs), bool: only these may be below (the others are known not to be);
     ``seen`` (N, pairs): set to a lower bound of every pair's distance (coal's distance where it
-    was computed, the bounding spheres' elsewhere); ``fns``: coal's distance functor per pair,
+    was computed, the bounding spheres' elsewhere, or a box's); ``fns``: coal's distance functor per pair,
     kept between calls.
     """
     robot = model.robot
@@ -57,6 +57,7 @@ def contacts(model: CollisionModel, qs: np.ndarray, below: float, candidates: np
     P, centers = model.body_frames(qs)
     bound = (np.linalg.norm(centers[:, ia] - centers[:, ib], axis=-1)
              - table.radius[ia] - table.radius[ib])
+    _box_bounds(table, P, centers, bound)
     if seen is not None:
         seen[:] = bound
     near = bound < below
@@ -104,6 +105,27 @@ def contacts(model: CollisionModel, qs: np.ndarray, below: float, candidates: np
 
     grad = moved(w2, seg[ib[ps]]) - moved(w1, seg[ia[ps]])
     return Contacts(ns, ps, d, grad)
+
+
+def _box_bounds(table: PairTable, P: np.ndarray, centers: np.ndarray, bound: np.ndarray) -> None:
+    """Raise ``bound`` (N, pairs) where one body of a pair is a box (a scene object, e.g. a table or
+    a wall, whose bounding sphere is far larger than the box): the other body's bounding sphere
+    against the box itself, ``|max(|R^T (c - t)| - h, 0)| - r``, is also a lower bound."""
+    half = [np.asarray(g.halfSide, dtype=float) if isinstance(g, coal.Box) else None for g in table.geometry]
+    is_box = np.array([h is not None for h in half])
+    if not is_box.any():
+        return
+    sides = np.stack([np.zeros(3) if h is None else h for h in half])
+    for box, other in ((table.first, table.second), (table.second, table.first)):
+        sel = np.flatnonzero(is_box[box])
+        if not sel.size:
+            continue
+        k, o = box[sel], other[sel]
+        Pk = P[:, k]                                                          # (N, S, 4, 4)
+        rel = centers[:, o] - Pk[..., :3, 3]                                  # base frame
+        local = np.einsum('nsji,nsj->nsi', Pk[..., :3, :3], rel)              # in the box's frame
+        out = np.linalg.norm(np.maximum(np.abs(local) - sides[k], 0.0), axis=-1) - table.radius[o]
+        bound[:, sel] = np.maximum(bound[:, sel], out)
 
 
 @dataclass

@@ -192,3 +192,34 @@ def test_a_cancelled_ptp_item_stops(blocked, mass) -> None:
     with cancellable(token), pytest.raises(Cancelled, match='client gone'):
         plan_sequence(GeodesicPlanner(robot), [MotionItem('PTP', goal_joints=Q_B)], start_joints=Q_A, mass=mass,
                       around=AroundOptions(model, 5.0))
+
+
+def test_the_obstacle_term_finds_every_pair_coal_finds_near(blocked) -> None:
+    """contacts() skips pairs by bounds (bounding spheres, and a body's sphere against a box
+    itself): at random configurations among a table, a wall and the box, it returns exactly the
+    pairs whose coal distance (computed here for every pair) is below the threshold."""
+    import coal
+
+    from geodesic_planner.core.obstacle_penalty import contacts
+
+    robot, model = blocked
+    scene = model.with_objects([*model.objects,
+                                SceneObject('table', Shape('box', (1.4, 1.4, 0.04)), trans(0.3, 0.0, -0.03)),
+                                SceneObject('wall', Shape('box', (0.03, 1.0, 1.0)), trans(0.55, 0.0, 0.4))])
+    rng = np.random.default_rng(7)
+    qs = rng.uniform(np.maximum(robot.lower, -np.pi), np.minimum(robot.upper, np.pi), (60, robot.dof))
+    below = 0.05
+    found = contacts(scene, qs, below)
+    table = scene.pair_table
+    P = scene.body_frames(qs)[0]
+    expected = set()
+    for n in range(len(qs)):
+        for p, (i, j) in enumerate(zip(table.first, table.second)):
+            r = coal.DistanceResult()
+            d = coal.distance(table.geometry[i], coal.Transform3s(P[n, i, :3, :3], P[n, i, :3, 3]),
+                              table.geometry[j], coal.Transform3s(P[n, j, :3, :3], P[n, j, :3, 3]),
+                              coal.DistanceRequest(), r)
+            if d < below:
+                expected.add((n, p))
+    assert len(expected) > 20
+    assert set(zip(found.n.tolist(), found.pair.tolist())) == expected
