@@ -24,6 +24,8 @@ exists), refused within the budget. Nothing is asserted.
 from __future__ import annotations
 
 import argparse
+import os
+import platform
 import sys
 import time
 import xml.etree.ElementTree as ET
@@ -164,6 +166,9 @@ def main():
     ap.add_argument('--budget', type=float, default=1.0)
     ap.add_argument('--seed', type=int, default=0)
     args = ap.parse_args()
+    import scipy.optimize  # noqa: F401  (loaded before the first plan is timed, as in a running node)
+    print(f'machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; '
+          f'load average {os.getloadavg()[0]:.2f} at the start', flush=True)
     rows = []
     boxed_done = False
     for name in args.arms.split(','):
@@ -207,6 +212,7 @@ def main():
 
 
 def report(rows, args):
+    print(f'load average {os.getloadavg()[0]:.2f} at the end')
     solvable = [r for r in rows if r['ok'] or r.get('E_ompl') is not None]
     ok = [r for r in rows if r['ok']]
     print(f'\n{len(rows)} problems ({args.pairs} per scene and arm), {len(solvable)} solvable '
