@@ -177,7 +177,7 @@ class AroundOptions:
 
     Attributes:
         model: the collision model (robot and scene) the way keeps clear of.
-        timeout: ``ptp_planning_timeout``: the search's budget per PTP item, s.
+        timeout: ``ptp_planning_timeout``: the budget of the search and the smoothing per PTP item, s.
         seed: OMPL's random seed (None: not set; the same seed twice in a process warns).
     """
 
