@@ -470,13 +470,11 @@ class CollisionModel:
             s = np.asarray(s, dtype=float)
             return np.asarray(path.evaluate(s, order=0)[0]), s
 
-        time_of = None
-        if s_of_t is not None:
-            law, T = s_of_t, float(duration)
-
-            def time_of(s: np.ndarray) -> np.ndarray:
-                return np.where(s >= 1.0, T, time_at(law, T, s))
-        return self.check_motion(positions, 1.0, path_speed(path), refine, time_of=time_of)
+        def times(s: np.ndarray) -> np.ndarray:
+            assert s_of_t is not None
+            return np.where(s >= 1.0, float(duration), time_at(s_of_t, float(duration), s))
+        return self.check_motion(positions, 1.0, path_speed(path), refine,
+                                 time_of=None if s_of_t is None else times)
 
     def check_motion(self, positions: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
                      duration: float, joint_speed: np.ndarray, refine: bool = True, *,

@@ -4,7 +4,7 @@ Interface (names relative to the node, ``~`` = ``/geodesic_planner`` by default)
 
 * service ``~/plan_trajectory`` (PlanTrajectory.srv documents every field): start (pose, joints,
   or unset = the current joint state), goal, via poses, ``blend_radius``, scaling factors and
-  ``execute``; the reply: the PlanErrorCode (:data:`~.planning.ERROR_CODES`), the reason, the
+  ``execute``; the reply: the PlanErrorCode (:data:`geodesic_planner.core.codes.ERROR_CODES`), the reason, the
   trajectory, the tool path, the solver's figures, the blend deviations, the followable
   ``fraction`` of the line. With a joint state known, an explicit start is solved seeded from it
   and refused (START_STATE_MISMATCH) beyond ``allowed_start_tolerance``.
@@ -85,7 +85,7 @@ from std_msgs.msg import Header, String
 from trajectory_msgs.msg import JointTrajectory
 
 from ..core.collision import CollisionModel
-from ..core.errors import GeodesicPlannerError, quoted
+from ..core.errors import GeodesicPlannerError, PlanTimeoutError, quoted
 from ..core.request import PlanRequest
 from . import params, runtime
 from .admission import PlanQueue, PlanWorker, WorkerBusyError
@@ -98,7 +98,7 @@ from .joint_states import JointStateListener, RateLimitedWarnings
 from .scene_services import SceneServices
 from .sensor_maps import SensorMaps, node_sensors
 from .sequence_service import SequenceService
-from .planning import (CODE_NAMES, ConfigError, Outcome, PlannerConfig, PlanResult, PlanTimeoutError,
+from .planning import (CODE_NAMES, ConfigError, Outcome, PlannerConfig, PlanResult,
                        build_config, compute_plan)
 from .service_requests import get_plan_request, plan_trajectory_request
 

@@ -31,11 +31,9 @@ from .. import GeodesicPlanner, load_robot
 from ..core.around import AroundOptions
 from ..core.blend import BlendedPath
 from ..core.cancel import checkpoint
-from ..core.codes import ERROR_CODES as ERROR_CODES  # the mapping lives in the library (planner_node's doc)
 from ..core.codes import error_code
 from ..core.errors import (ConfigError, GeodesicPlannerError, LimitError, PlanningFailedError, RequestError,
                            StartStateError, TrajectoryError)
-from ..core.errors import PlanTimeoutError as PlanTimeoutError  # planner_node imports it from here
 from ..core.branches import first_clear, start_branches
 from ..core.collision import MotionClearance
 from ..core.kinematics import Chain

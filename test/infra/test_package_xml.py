@@ -27,7 +27,7 @@ KEYS = {
                             'ament_index_python')},
 }
 #: Imported modules without a rosdep key: package.xml must name them in a comment.
-PIP_ONLY = {'mcap', 'lz4', 'zstandard', 'ray', 'pyarrow'}
+PIP_ONLY = {'mcap', 'lz4', 'zstandard', 'ray', 'pyarrow', 'ompl'}
 #: Used without an import: the pytest plugin behind @pytest.mark.timeout, and the linters run as
 #: programs by test/infra/test_lint.py and test_colcon.py.
 USED_NOT_IMPORTED = {'python3-pytest-timeout', 'python3-mypy', 'python3-colcon-common-extensions'}

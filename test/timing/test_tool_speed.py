@@ -174,7 +174,9 @@ def test_tool_angular_speed_limit_holds_and_binds(name: str) -> None:
     ([0.0, 0.0, 0.0, -1.5708, 0.0, 1.56204633, 0.0], [0.0, 0.0, 0.0, -1.5708, 0.0, 1.56204633, 0.6]),
 ])
 def test_panda_moves_found_by_hypothesis(move: tuple[list[float], list[float]]) -> None:
-    path = planner('panda').plan_joints(*move)
+    # the collocation geodesic of G + εI these moves were found on (since issue 36 a LIN between
+    # joints on other branches is refused; the time law is what is tested here)
+    path = planner('panda').plan_joints(*move, method='collocation')
     checked = [check_tool_limit(path, key, arg)
                for key, arg in (('v', 'max_tool_speed'), ('w', 'max_tool_angular_speed'))]
     assert checked[1]
