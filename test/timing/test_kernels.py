@@ -376,12 +376,12 @@ def test_scale_floor_is_below_every_law_tried(monkeypatch):
     floors, tried = {}, []
     best_width, search = jerk._best_width, box_check.BoxCheck.search
 
-    def spy_best(pieces, w_ref, checker, start=3):
+    def spy_best(pieces, w_ref, checker, *args, **kwargs):
         floors[id(pieces)] = (pieces, jerk._floor(pieces, w_ref))      # kept alive: ids stay unique
-        return best_width(pieces, w_ref, checker, start)
+        return best_width(pieces, w_ref, checker, *args, **kwargs)
 
-    def spy_search(checker, pieces, tables, width, above=np.inf):
-        lam, duration, exact = search(checker, pieces, tables, width, above)
+    def spy_search(checker, pieces, tables, width, *args, **kwargs):
+        lam, duration, exact = search(checker, pieces, tables, width, *args, **kwargs)
         known = floors.get(id(pieces))
         tried.append((known[1] if known is not None and known[0] is pieces else None, lam * duration))
         return lam, duration, exact
