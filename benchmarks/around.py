@@ -44,6 +44,8 @@ from geodesic_planner.core.kinematics import trans  # noqa: E402
 from geodesic_planner.core.ptp import JointLinePath, UrdfMass  # noqa: E402
 from geodesic_planner.core.smooth_around import WayPath, way_action  # noqa: E402
 
+from ptp import Judge  # noqa: E402  (benchmarks/ is the script's directory: the one energy judge)
+
 DATA = ROOT / 'test' / 'data' / 'real_arms'
 MESHES = DATA / 'meshes'
 ROBOTS = MESHES / 'example-robot-data' / 'robots'
@@ -111,29 +113,6 @@ def dense_min(model, path, samples=2001, step=1e-3):
         s = np.linspace(0.0, 1.0, (samples - 1) * k + 1)
         q = path.evaluate(s, 0)[0]
     return float(model.distances(q)[0].min())
-
-
-class Judge:
-    """int q'^T M q' ds by pinocchio's crba on the URDF (Simpson on 2001 samples)."""
-
-    def __init__(self, urdf, names):
-        import pinocchio as pin
-        self.pin, self.model = pin, pin.buildModelFromUrdf(str(urdf))
-        self.data = self.model.createData()
-        self.idx = [self.model.joints[self.model.getJointId(n)].idx_q for n in names]
-
-    def __call__(self, path):
-        s = np.linspace(0.0, 1.0, 2001)
-        q, v = path.evaluate(s, 1)
-        full = self.pin.neutral(self.model)
-        f = np.empty(s.size)
-        for k, (qk, vk) in enumerate(zip(q, v)):
-            full[self.idx] = qk
-            m = self.pin.crba(self.model, self.data, full)
-            m = np.triu(m) + np.triu(m, 1).T
-            f[k] = vk @ m[np.ix_(self.idx, self.idx)] @ vk
-        h = s[1]
-        return float(h / 3.0 * (f[0] + f[-1] + 4.0 * f[1:-1:2].sum() + 2.0 * f[2:-1:2].sum()))
 
 
 def boxed_in(name, robot, model, urdf, qa, qb, budget, tmp):
