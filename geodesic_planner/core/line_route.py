@@ -175,7 +175,7 @@ class LineRoute:
                                   path_tolerance=self.path_tolerance, max_nodes=self.max_nodes,
                                   time_limit=self.time_limit,
                                   check_limits=self._path_limits if self.check_limits else None,
-                                  seeded=False, seeds=seeds)
+                                  seeds=seeds)
         except LimitError:
             return None          # the least-motion path leaves a limit: the trace may stay inside
 

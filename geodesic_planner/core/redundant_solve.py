@@ -24,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .cancel import checkpoint
-from .continuation import LineFollow, follow_line
+from .continuation import LineFollow
 from .errors import BVPError, LimitError
 from .geodesic import GeodesicPath, SolverReport
 from .ik import IKSolution
@@ -349,53 +349,38 @@ def redundant_path(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b:
 def plan_redundant(eq: RedundantEquations, task: LineTask, q_a: np.ndarray, q_b: np.ndarray,
                    ik_a: IKSolution | None, ik_b: IKSolution | None, *, t0: float, path_tolerance: float,
                    max_nodes: int, time_limit: float | None,
-                   check_limits: Callable[[GeodesicPath], None] | None, seeded: bool = True,
+                   check_limits: Callable[[GeodesicPath], None] | None,
                    seeds: LineFollow | None = None) -> GeodesicPath | None:
     """The planner's least-motion path (more than 6 joints), or None when it cannot be found.
 
     To a goal pose (``ik_b`` given) the goal configuration is free (transversality); if that path
     leaves the joint limits (``check_limits`` raises LimitError), the IK's goal q_b is kept instead,
-    whose LimitError propagates. Each is solved from the straight joint line first; where that
-    fails (near a singularity the iterations can wander off), from the line followed by
-    continuation (``continuation.follow_line``), when that reaches the goal pose (``seeded``; the
-    planner passes False: its own fallback traces the line, core/trace.py). With ``seeds`` (the
-    line already followed, e.g. traced) only the solves started from them are tried.
+    whose LimitError propagates. Each is solved from the straight joint line, or, with ``seeds``
+    (the line already followed, e.g. traced by core/trace.py, where the iterations from the joint
+    line wandered off near a singularity), from those.
 
     Raises:
         BVPError: the time limit ran out; LimitError: see above.
     """
     deadline = None if time_limit is None else time.perf_counter() + time_limit
-    followed: list[LineFollow | None] = [] if seeds is None else [seeds]
-    tries = (True,) if seeds is not None else (False, True) if seeded else (False,)
     for free_end in (True, False) if ik_b is not None else (False,):
-        for with_follow in tries:
-            follow = None
-            if with_follow:
-                if not followed:
-                    line = follow_line(eq.robot, q_a, task.T_a, task.T_b, task.w_body,
-                                       position_weight=eq.metric.position_weight,
-                                       orientation_weight=eq.metric.effective_orientation_weight or 1.0)
-                    followed.append(line if line.error is None else None)
-                follow = followed[0]
-                if follow is None:
-                    break
-            try:
-                path = redundant_path(eq, task, q_a, q_b, free_end=free_end, path_tolerance=path_tolerance, t0=t0,
-                                      deadline=deadline, max_nodes=max_nodes, ik_start=ik_a, ik_goal=ik_b,
-                                      follow=follow)
-            except (_NoPathError, np.linalg.LinAlgError):   # LinAlgError: J singular at a node
-                continue
-            except _TimeUpError:
-                raise BVPError(f'geodesic solver exceeded its time limit of {time_limit:g} s for robot '
-                               f'{eq.robot.name!r}', status=-2) from None
-            if free_end and ik_b is not None:
-                path.ik_goal = dataclasses.replace(ik_b, q=path.q_goal)
-            try:
-                if check_limits is not None:
-                    check_limits(path)
-            except LimitError:
-                if free_end:
-                    break
-                raise
-            return path
+        try:
+            path = redundant_path(eq, task, q_a, q_b, free_end=free_end, path_tolerance=path_tolerance, t0=t0,
+                                  deadline=deadline, max_nodes=max_nodes, ik_start=ik_a, ik_goal=ik_b,
+                                  follow=seeds)
+        except (_NoPathError, np.linalg.LinAlgError):   # LinAlgError: J singular at a node
+            continue
+        except _TimeUpError:
+            raise BVPError(f'geodesic solver exceeded its time limit of {time_limit:g} s for robot '
+                           f'{eq.robot.name!r}', status=-2) from None
+        if free_end and ik_b is not None:
+            path.ik_goal = dataclasses.replace(ik_b, q=path.q_goal)
+        try:
+            if check_limits is not None:
+                check_limits(path)
+        except LimitError:
+            if free_end:
+                continue        # the IK's goal next
+            raise
+        return path
     return None

@@ -303,12 +303,7 @@ def trace(robot: Chain, curve: TaskCurve, q_a: np.ndarray, *, metric: Metric, to
     flow = _Flow(robot, curve, tol)
     q_a = np.asarray(q_a, dtype=float)
     X, T, J = flow.frames(q_a[None])
-    with np.errstate(all='ignore'):
-        try:
-            v, a, lo, hi, ok = flow.nodes(np.zeros(1), q_a[None], X, T, J)
-        except np.linalg.LinAlgError:           # J exactly singular at the start
-            v, a, lo, hi, ok = _rows(flow, np.zeros(1), q_a[None], X, T, J)
-            lo[0], hi[0] = (float(x) for x in np.linalg.svd(J[0], compute_uv=False)[[-1, 0]])
+    v, a, lo, hi, ok = _nodes(flow, np.zeros(1), q_a[None], X, T, J)     # J may be singular at the start
     node = _Node(0.0, q_a, v[0], a[0], float(lo[0]), float(hi[0]))
     if not ok[0]:
         return TraceResult(None, _stop_error(robot, curve, node, rate=True), 1)
@@ -389,11 +384,8 @@ def _advance(flow: _Flow, node: _Node, s_new: np.ndarray, q_end: np.ndarray | No
     if q_end is not None and s_new[-1] == 1.0 and converged[-1] and np.abs(q[-1] - q_end).max() <= SNAP_END:
         q[-1] = q_end
         X, T, J = flow.frames(q)
+    v, a, lo, hi, ok = _nodes(flow, s_new, q, X, T, J)
     with np.errstate(all='ignore'):
-        try:
-            v, a, lo, hi, ok = flow.nodes(s_new, q, X, T, J)
-        except np.linalg.LinAlgError:
-            v, a, lo, hi, ok = _rows(flow, s_new, q, X, T, J)
         if correct and flow.redundant and m == 1 and ok[0] and converged[0] and q_end is None:
             # the self-motion of the predicted node is only second order: move it (in J's null
             # space) onto the flow's two-point Hermite-Obreschkoff step, q1 = q0 + h/2 (v0 + v1)
@@ -443,18 +435,26 @@ def _advance(flow: _Flow, node: _Node, s_new: np.ndarray, q_end: np.ndarray | No
     return accepted, False
 
 
-def _rows(flow: _Flow, s: np.ndarray, q: np.ndarray, X: np.ndarray, T: np.ndarray, J: np.ndarray
-          ) -> tuple[np.ndarray, ...]:
-    """:meth:`_Flow.nodes` row by row, a row whose Jacobian is singular marked not ok."""
-    n = q.shape[1]
-    v, a = np.full((s.size, n), np.nan), np.full((s.size, n), np.nan)
-    lo, hi, ok = np.zeros(s.size), np.ones(s.size), np.zeros(s.size, dtype=bool)
-    for j in range(s.size):
+def _nodes(flow: _Flow, s: np.ndarray, q: np.ndarray, X: np.ndarray, T: np.ndarray, J: np.ndarray
+           ) -> tuple[np.ndarray, ...]:
+    """:meth:`_Flow.nodes` on all rows at once, else (a Jacobian exactly singular) row by row: such
+    a row is marked not ok, with its singular values (for the refusal's message)."""
+    with np.errstate(all='ignore'):
         try:
-            out = flow.nodes(s[j:j + 1], q[j:j + 1], X[j:j + 1], T[j:j + 1], J[j:j + 1])
+            return flow.nodes(s, q, X, T, J)
         except np.linalg.LinAlgError:
-            continue
-        v[j], a[j], lo[j], hi[j], ok[j] = out[0][0], out[1][0], out[2][0], out[3][0], out[4][0]
+            pass
+        n = q.shape[1]
+        v, a = np.full((s.size, n), np.nan), np.full((s.size, n), np.nan)
+        lo, hi, ok = np.zeros(s.size), np.ones(s.size), np.zeros(s.size, dtype=bool)
+        for j in range(s.size):
+            try:
+                out = flow.nodes(s[j:j + 1], q[j:j + 1], X[j:j + 1], T[j:j + 1], J[j:j + 1])
+            except np.linalg.LinAlgError:
+                sv = np.linalg.svd(J[j], compute_uv=False)
+                lo[j], hi[j] = float(sv[-1]), float(sv[0])
+                continue
+            v[j], a[j], lo[j], hi[j], ok[j] = out[0][0], out[1][0], out[2][0], out[3][0], out[4][0]
     return v, a, lo, hi, ok
 
 

@@ -353,7 +353,7 @@ def test_a_traced_line_seeds_the_least_motion_solve():
     seeds = LineFollow(traced.s_nodes, traced.q_nodes, 1.0, None)
     path = solve.plan_redundant(planner.redundant, task, q_a, traced.q_goal, None, planner.resolve_ends(
         None, T_b, start_joints=q_a)[3], t0=time.perf_counter(), path_tolerance=1e-9, max_nodes=2000,
-        time_limit=10.0, check_limits=None, seeded=False, seeds=seeds)
+        time_limit=10.0, check_limits=None, seeds=seeds)
     assert path is not None and path.solver.method == 'redundant'
     dp, dr = tool_errors(U.panda_fk_batch, path, T_a, T_b)
     assert dp <= EXACT and dr <= EXACT, (dp, dr)
